@@ -1,0 +1,77 @@
+"""Screen-tile binning of entries on the host: which entries may cover which 16×16-pixel tile.
+
+An entry's screen footprint over its time span is bounded by the projections of its vertices at
+both ends (a linearly moving point projects to a straight screen segment while in front of the
+eye). Entries with a vertex in front of the near plane at either end are given the whole screen
+(their visible part is found per sample); entries entirely beyond the far plane or entirely
+behind the near plane, or off screen, are dropped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .camera import Projection
+
+TILE_SIZE = 16
+
+
+@dataclass
+class TileBins:
+    tile_offsets: np.ndarray   # (num_tiles + 1,) int32
+    tile_entries: np.ndarray   # (pairs,) int32, ascending entry order within each tile
+    tiles_x: int
+    tiles_y: int
+
+    @property
+    def num_pairs(self) -> int:
+        return len(self.tile_entries)
+
+
+def entry_pixel_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarray,
+                       entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray,
+                       margin: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel bounding boxes (E, 4) float64 [x0, y0, x1, y1] and a keep mask (E,) of entries."""
+    vi = tri_vertices[entry_tri]                                        # (E, 3)
+    pts = np.concatenate([positions[entry_k0[:, None], vi], positions[entry_k1[:, None], vi]], axis=1)
+    depth = -pts[..., 2].astype(np.float64)                             # (E, 6)
+    keep = ~((depth > proj.far).all(axis=1) | (depth < proj.near).all(axis=1))
+    crosses = (depth < proj.near).any(axis=1) & ~proj.orthographic
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = proj.project(pts)
+    lo = np.nanmin(r, axis=1) - margin
+    hi = np.nanmax(r, axis=1) + margin
+    box = np.concatenate([lo, hi], axis=1)
+    box[crosses] = (-margin, -margin, proj.width + margin, proj.height + margin)
+    finite = np.isfinite(box).all(axis=1)
+    box[~finite] = (-margin, -margin, proj.width + margin, proj.height + margin)
+    keep &= (box[:, 2] >= 0) & (box[:, 0] <= proj.width) & (box[:, 3] >= 0) & (box[:, 1] <= proj.height)
+    return box, keep
+
+
+def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size: int = TILE_SIZE) -> TileBins:
+    """Tile lists from entry pixel boxes (count, prefix sum, fill — on the host with NumPy)."""
+    tiles_x = (proj.width + tile_size - 1) // tile_size
+    tiles_y = (proj.height + tile_size - 1) // tile_size
+    idx = np.nonzero(keep)[0]
+    b = boxes[idx]
+    tx0 = np.clip(np.floor(b[:, 0] / tile_size), 0, tiles_x - 1).astype(np.int64)
+    ty0 = np.clip(np.floor(b[:, 1] / tile_size), 0, tiles_y - 1).astype(np.int64)
+    tx1 = np.clip(np.floor(b[:, 2] / tile_size), 0, tiles_x - 1).astype(np.int64)
+    ty1 = np.clip(np.floor(b[:, 3] / tile_size), 0, tiles_y - 1).astype(np.int64)
+    w = tx1 - tx0 + 1
+    counts = w * (ty1 - ty0 + 1)
+    total = int(counts.sum())
+    rep = np.repeat(np.arange(len(idx)), counts)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]) if len(counts) else np.zeros(0, np.int64)
+    local = np.arange(total) - np.repeat(starts, counts)
+    tx = tx0[rep] + local % w[rep]
+    ty = ty0[rep] + local // w[rep]
+    tile = ty * tiles_x + tx
+    order = np.argsort(tile, kind="stable")
+    entries = idx[rep[order]].astype(np.int32)
+    per_tile = np.bincount(tile, minlength=tiles_x * tiles_y)
+    offsets = np.concatenate([[0], np.cumsum(per_tile)]).astype(np.int32)
+    return TileBins(offsets, entries, tiles_x, tiles_y)

@@ -1,0 +1,86 @@
+"""Host NumPy -> Warp structs (float64 camera-space positions become float32 here, and only here)."""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from .binning import TileBins
+from .camera import Projection
+from .kernel_types import Bins, Geometry, Shading, View
+
+
+def _arr(a: np.ndarray, dtype, device: str, min_len: int = 1):
+    a = np.ascontiguousarray(a)
+    if len(a) < min_len:
+        shape = (min_len,) + a.shape[1:]
+        a = np.zeros(shape, a.dtype)
+    return wp.array(a, dtype=dtype, device=device)
+
+
+def make_view(proj: Projection, spatial: int, bins: TileBins | None, tile_size: int) -> View:
+    v = View()
+    v.width, v.height = proj.width, proj.height
+    x0, y0, x1, y1 = proj.window
+    v.win_min = wp.vec2(x0, y0)
+    v.win_max = wp.vec2(x1, y1)
+    v.ortho = 1 if proj.orthographic else 0
+    v.near, v.far = proj.near, proj.far
+    v.spatial = spatial
+    v.tile_size = tile_size
+    v.tiles_x = bins.tiles_x if bins is not None else (proj.width + tile_size - 1) // tile_size
+    return v
+
+
+class TriangleTables:
+    """Per-triangle data uploaded once per frame (topology, flags, materials, colours)."""
+
+    def __init__(self, tri_vertices: np.ndarray, tri_flags: np.ndarray, tri_material: np.ndarray,
+                 tri_colors: np.ndarray, device: str) -> None:
+        self.tri_vertices = _arr(tri_vertices.astype(np.int32), wp.vec3i, device)
+        self.tri_flags = _arr(tri_flags.astype(np.int32), int, device)
+        self.tri_material = _arr(tri_material.astype(np.int32), int, device)
+        self.tri_colors = _arr(tri_colors.astype(np.float32), wp.vec3, device)
+        self.device = device
+
+
+def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.ndarray | None,
+                  entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray) -> Geometry:
+    """positions: (K+1, V, 3) camera space (float64 ok); normals: same shape or None."""
+    dev = tables.device
+    g = Geometry()
+    k1, v = positions.shape[0], max(positions.shape[1], 1)
+    pos = np.zeros((k1, v, 3), np.float32)
+    pos[:, :positions.shape[1]] = positions
+    g.positions = wp.array(pos, dtype=wp.vec3, device=dev)
+    if normals is None or normals.size == 0:
+        g.normals = wp.zeros((1, 1), dtype=wp.vec3, device=dev)
+    else:
+        g.normals = wp.array(np.ascontiguousarray(normals, np.float32), dtype=wp.vec3, device=dev)
+    g.tri_vertices, g.tri_flags = tables.tri_vertices, tables.tri_flags
+    g.tri_material, g.tri_colors = tables.tri_material, tables.tri_colors
+    g.entry_tri = _arr(entry_tri.astype(np.int32), int, dev)
+    g.entry_k0 = _arr(entry_k0.astype(np.int32), int, dev)
+    g.entry_k1 = _arr(entry_k1.astype(np.int32), int, dev)
+    g.num_segments = max(k1 - 1, 1)
+    return g
+
+
+def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, device: str) -> Shading:
+    """lights: (L+1, NL, LIGHT_WIDTH) tables at L+1 knots over the shutter."""
+    s = Shading()
+    s.materials = wp.array(np.ascontiguousarray(materials, np.float32), dtype=float, device=device)
+    nl = lights.shape[1]
+    lt = lights if nl else np.zeros((lights.shape[0], 1, lights.shape[2]), np.float32)
+    s.lights = wp.array(np.ascontiguousarray(lt, np.float32), dtype=float, device=device)
+    s.num_lights = nl
+    s.light_segments = lights.shape[0] - 1
+    s.dome = wp.vec3(*[float(x) for x in dome])
+    return s
+
+
+def make_bins(bins: TileBins, device: str) -> Bins:
+    b = Bins()
+    b.tile_offsets = _arr(bins.tile_offsets, int, device)
+    b.tile_entries = _arr(bins.tile_entries, int, device)
+    return b

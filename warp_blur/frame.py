@@ -1,0 +1,107 @@
+"""What every method shares for one frame: the scene, camera, shutter, device tables, and the
+sharp passes (shading an instant; Z and motion AOVs at the shutter centre)."""
+
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+import numpy as np
+import warp as wp
+
+from .binning import TILE_SIZE, TileBins, bin_entries, entry_pixel_bounds
+from .camera import Projection
+from .device_data import TriangleTables, make_bins, make_geometry, make_shading, make_view
+from .kernel_types import Geometry
+from .parallel import launch_pixels
+from .raster import render_depth_motion, render_sharp
+from .scene import Scene, Snapshot
+from .settings import RenderSettings
+from .stage import Shutter
+
+
+@dataclass
+class FrameContext:
+    scene: Scene
+    proj: Projection
+    shutter: Shutter
+    settings: RenderSettings
+    device: str
+    timings: dict = field(default_factory=dict)
+    counters: dict = field(default_factory=dict)
+    _tables: TriangleTables | None = None
+
+    @contextmanager
+    def timed(self, stage: str):
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.timings[stage] = self.timings.get(stage, 0.0) + time.perf_counter() - t0
+
+    @property
+    def num_pixels(self) -> int:
+        return self.proj.width * self.proj.height
+
+    @property
+    def tables(self) -> TriangleTables:
+        if self._tables is None:
+            s = self.scene
+            self._tables = TriangleTables(s.tri_vertices, s.tri_flags, s.tri_material, s.tri_colors, self.device)
+        return self._tables
+
+    def snapshot(self, u: float) -> Snapshot:
+        with self.timed("scene"):
+            return self.scene.snapshot(self.shutter.time(u))
+
+    def shading(self, snapshots: list[Snapshot]):
+        lights = np.stack([s.lights for s in snapshots]) if snapshots else np.zeros((1, 0, 18), np.float32)
+        return make_shading(self.scene.material_table, lights, self.scene.dome, self.device)
+
+    def bin(self, positions: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray,
+            entry_k1: np.ndarray) -> TileBins:
+        with self.timed("binning"):
+            margin = 1.0
+            boxes, keep = entry_pixel_bounds(self.proj, positions, self.scene.tri_vertices, entry_tri,
+                                             entry_k0, entry_k1, margin)
+            bins = bin_entries(self.proj, boxes, keep, TILE_SIZE)
+        self.counters["bin_pairs"] = self.counters.get("bin_pairs", 0) + bins.num_pairs
+        return bins
+
+    def view(self, bins: TileBins | None):
+        return make_view(self.proj, self.settings.spatial_samples, bins, TILE_SIZE)
+
+    def static_geometry(self, snapshots: list[Snapshot], knot: int) -> tuple[Geometry, TileBins]:
+        """Geometry with all snapshots as knots, and static entries at `knot` for visible triangles."""
+        positions = np.stack([s.positions for s in snapshots])
+        normals = np.stack([s.normals for s in snapshots]) if self.scene.any_smooth else None
+        tris = np.nonzero(snapshots[knot].tri_visible)[0].astype(np.int32)
+        k = np.full(len(tris), knot, np.int32)
+        bins = self.bin(positions, tris, k, k)
+        return make_geometry(self.tables, positions, normals, tris, k, k), bins
+
+    def sharp_pass(self, snapshot: Snapshot, weight: float, rgba: wp.array) -> None:
+        """rgba += weight × the sharp image of one instant."""
+        geo, bins = self.static_geometry([snapshot], 0)
+        sh = self.shading([snapshot])
+        view, b = self.view(bins), make_bins(bins, self.device)
+        with self.timed("render"):
+            launch_pixels(render_sharp, self.num_pixels,
+                          lambda first: [view, geo, sh, b, 0.0, weight, first, rgba],
+                          self.device, self.settings.threads)
+
+    def depth_motion(self, snapshots: list[Snapshot] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Z (H, W) and motion (H, W, 2) AOVs of the surface seen at the shutter centre."""
+        if snapshots is None:
+            snapshots = [self.snapshot(0.0), self.snapshot(0.5), self.snapshot(1.0)]
+        geo, bins = self.static_geometry(snapshots, 1)
+        view, b = self.view(bins), make_bins(bins, self.device)
+        depth = wp.zeros(self.num_pixels, dtype=float, device=self.device)
+        motion = wp.zeros(self.num_pixels, dtype=wp.vec2, device=self.device)
+        with self.timed("aovs"):
+            launch_pixels(render_depth_motion, self.num_pixels,
+                          lambda first: [view, geo, b, 0.5, 0, 2, first, depth, motion],
+                          self.device, self.settings.threads)
+        h, w = self.proj.height, self.proj.width
+        return depth.numpy().reshape(h, w), motion.numpy().reshape(h, w, 2)

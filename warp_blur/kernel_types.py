@@ -1,0 +1,64 @@
+"""Warp structs shared by every kernel: the view, the geometry over time, shading inputs, tile bins.
+
+Geometry over time: vertex positions are stored at K+1 knots over the shutter (u = k/K). An *entry*
+is a triangle over a span of knots [k0, k1]: its vertices move linearly from knot k0 to k1 for
+u in [k0/K, k1/K]. An entry with k0 == k1 is static: the same triangle for every u in [0, 1].
+The sharp render is the special case of static entries.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+wp.config.quiet = True
+
+
+@wp.struct
+class View:
+    """Image and camera: window on the reference plane (distance 1, or scene units if ortho)."""
+
+    width: int
+    height: int
+    win_min: wp.vec2
+    win_max: wp.vec2
+    ortho: int
+    near: float
+    far: float
+    spatial: int          # n -> n×n sub-pixel positions (1 = pixel centre)
+    tile_size: int
+    tiles_x: int
+
+
+@wp.struct
+class Geometry:
+    """Camera-space triangles over the shutter (see module docstring)."""
+
+    positions: wp.array2d(dtype=wp.vec3)    # (K+1, V)
+    normals: wp.array2d(dtype=wp.vec3)      # (K+1, V) smooth vertex normals, or (1, 1) unused
+    tri_vertices: wp.array(dtype=wp.vec3i)  # (T,)
+    tri_flags: wp.array(dtype=int)          # (T,) bit 0 double-sided, bit 1 smooth
+    tri_material: wp.array(dtype=int)       # (T,)
+    tri_colors: wp.array(dtype=wp.vec3)     # (T,) displayColor
+    entry_tri: wp.array(dtype=int)          # (E,)
+    entry_k0: wp.array(dtype=int)           # (E,)
+    entry_k1: wp.array(dtype=int)           # (E,)
+    num_segments: int                       # K
+
+
+@wp.struct
+class Shading:
+    """Materials (M, 12), lights at L+1 knots (L+1, NL, 18) and the dome radiance."""
+
+    materials: wp.array2d(dtype=float)
+    lights: wp.array3d(dtype=float)
+    num_lights: int
+    light_segments: int
+    dome: wp.vec3
+
+
+@wp.struct
+class Bins:
+    """Entries overlapping each screen tile: tile_entries[tile_offsets[t]:tile_offsets[t+1]]."""
+
+    tile_offsets: wp.array(dtype=int)
+    tile_entries: wp.array(dtype=int)

@@ -1,0 +1,149 @@
+"""UsdLux lights into per-instant tables in camera space (SPEC §4).
+
+Radiance of a light is color × intensity × 2^exposure (÷ world-space area with inputs:normalize).
+Table columns (LIGHT_WIDTH floats per light), read by `shading.py`:
+  0 type (0 distant, 1 sphere/point, 2 rect, 3 disk), 1-3 radiance rgb, 4-6 position,
+  7-9 emission axis (unit; for distant lights the direction *towards* the light),
+  10-12 half-extent u axis, 13-15 half-extent v axis, 16 radius, 17 casts shadows.
+Irradiance models: distant E = L·cosθ; sphere of radius r at distance d: E = π L (r/d)² cosθ
+(a point light, radius 0, has the intensity of USD's fallback 0.5 radius); rect and disk lights
+are integrated over a fixed 4×4 stratified set of points on the light.
+A DomeLight without texture is the background radiance and a uniform ambient term.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pxr import Gf, Usd, UsdGeom, UsdLux
+
+from .log import warn_once
+
+LIGHT_WIDTH = 18
+DISTANT, SPHERE, RECT, DISK = 0, 1, 2, 3
+POINT_LIGHT_RADIUS = 0.5
+
+
+@dataclass
+class LightPrim:
+    prim: Usd.Prim
+    kind: int
+
+
+def _radiance(light: UsdLux.LightAPI, time: Usd.TimeCode) -> np.ndarray:
+    color = np.asarray(light.GetColorAttr().Get(time) or (1, 1, 1), np.float64)
+    intensity = float(light.GetIntensityAttr().Get(time) or 0.0)
+    exposure = float(light.GetExposureAttr().Get(time) or 0.0)
+    return color * intensity * 2.0 ** exposure
+
+
+def find_lights(stage: Usd.Stage) -> tuple[list[LightPrim], np.ndarray | None]:
+    """Supported lights in traversal order, and the dome radiance (None without a dome)."""
+    lights: list[LightPrim] = []
+    dome = None
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
+        if not prim.HasAPI(UsdLux.LightAPI):
+            continue
+        path = str(prim.GetPath())
+        if prim.IsA(UsdLux.DistantLight):
+            lights.append(LightPrim(prim, DISTANT))
+        elif prim.IsA(UsdLux.SphereLight):
+            lights.append(LightPrim(prim, SPHERE))
+        elif prim.IsA(UsdLux.RectLight):
+            if UsdLux.RectLight(prim).GetTextureFileAttr().Get():
+                warn_once(f"tex:{path}", f"light {path}: textureFile is not supported (uniform colour used)")
+            lights.append(LightPrim(prim, RECT))
+        elif prim.IsA(UsdLux.DiskLight):
+            lights.append(LightPrim(prim, DISK))
+        elif prim.IsA(UsdLux.DomeLight):
+            dl = UsdLux.DomeLight(prim)
+            if dl.GetTextureFileAttr().Get():
+                warn_once(f"tex:{path}", f"dome light {path}: textureFile is not supported (uniform colour used)")
+            if dome is not None:
+                warn_once(f"dome2:{path}", f"dome light {path} ignored: only the first dome light is used")
+                continue
+            dome = LightPrim(prim, -1)
+        else:
+            warn_once(f"light:{path}", f"light {path} ({prim.GetTypeName()}) is not supported and is ignored")
+    return lights, dome
+
+
+def dome_radiance(dome: LightPrim | None, frame: float) -> np.ndarray:
+    """Background/ambient radiance rgb (zeros without a dome, or when it is invisible)."""
+    if dome is None:
+        return np.zeros(3, np.float32)
+    t = Usd.TimeCode(frame)
+    if UsdGeom.Imageable(dome.prim).ComputeVisibility(t) == UsdGeom.Tokens.invisible:
+        return np.zeros(3, np.float32)
+    return _radiance(UsdLux.LightAPI(dome.prim), t).astype(np.float32)
+
+
+def light_table(lights: list[LightPrim], time: float, cam_from_world: np.ndarray,
+                xform_cache: UsdGeom.XformCache) -> np.ndarray:
+    """(NL, LIGHT_WIDTH) float32 table of the lights at `time`, in camera space.
+
+    cam_from_world: (4, 4) float64 row-vector matrix (p_cam = p_world @ M).
+    """
+    t = Usd.TimeCode(time)
+    rows = []
+    for lp in lights:
+        if UsdGeom.Imageable(lp.prim).ComputeVisibility(t) == UsdGeom.Tokens.invisible:
+            continue
+        api = UsdLux.LightAPI(lp.prim)
+        m_world = np.array(xform_cache.GetLocalToWorldTransform(lp.prim), np.float64)
+        m = m_world @ cam_from_world
+        origin = m[3, :3]
+        ax, ay, az = m[0, :3], m[1, :3], m[2, :3]
+        radiance = _radiance(api, t)
+        normalize = bool(api.GetNormalizeAttr().Get(t))
+        shadow = UsdLux.ShadowAPI(lp.prim).GetShadowEnableAttr().Get(t)
+        row = np.zeros(LIGHT_WIDTH, np.float64)
+        row[0] = lp.kind
+        row[4:7] = origin
+        row[17] = 1.0 if (shadow is None or shadow) else 0.0
+        if lp.kind == DISTANT:
+            row[7:10] = az / max(np.linalg.norm(az), 1e-30)
+        elif lp.kind == SPHERE:
+            sl = UsdLux.SphereLight(lp.prim)
+            scale = float(np.cbrt(abs(np.linalg.det(m_world[:3, :3]))))
+            radius = float(sl.GetRadiusAttr().Get(t) or 0.0) * scale
+            if sl.GetTreatAsPointAttr().Get(t):
+                radius = 0.0
+            row[16] = radius
+            if normalize and radius > 0:
+                radiance = radiance / (4.0 * np.pi * radius * radius)
+        else:
+            n = -az / max(np.linalg.norm(az), 1e-30)
+            row[7:10] = n
+            if lp.kind == RECT:
+                rl = UsdLux.RectLight(lp.prim)
+                hu = ax * float(rl.GetWidthAttr().Get(t) or 1.0) / 2
+                hv = ay * float(rl.GetHeightAttr().Get(t) or 1.0) / 2
+                area = 4.0 * np.linalg.norm(np.cross(hu, hv))
+            else:
+                r = float(UsdLux.DiskLight(lp.prim).GetRadiusAttr().Get(t) or 0.5)
+                hu, hv = ax * r, ay * r
+                area = np.pi * np.linalg.norm(np.cross(hu, hv))
+            row[10:13], row[13:16] = hu, hv
+            if normalize and area > 0:
+                radiance = radiance / area
+        row[1:4] = radiance
+        rows.append(row)
+    if not rows:
+        return np.zeros((0, LIGHT_WIDTH), np.float32)
+    return np.stack(rows).astype(np.float32)
+
+
+def headlight_table() -> np.ndarray:
+    """A distant light at the camera (towards +Z in camera space) with irradiance π: a white
+    Lambert surface facing the camera shows its albedo (as usdview's headlight does)."""
+    row = np.zeros((1, LIGHT_WIDTH), np.float32)
+    row[0, 0] = DISTANT
+    row[0, 1:4] = np.pi
+    row[0, 7:10] = (0.0, 0.0, 1.0)
+    return row
+
+
+def gf_to_np(m: Gf.Matrix4d) -> np.ndarray:
+    return np.array(m, np.float64)

@@ -1,0 +1,125 @@
+"""The one sharp rasterizer: nearest hit per pixel sample at a shutter time, shaded, accumulated.
+
+Accumulation calls it once per instant; the velocity method and the Z/motion AOVs use its
+visibility at the shutter centre. Work is pixel-parallel over row bands (see parallel.py); each
+pixel walks the entries binned to its tile.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from .kernel_types import Bins, Geometry, Shading, View
+from .rays import entry_alpha, entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin
+from .shading import shade_entry_hit
+
+
+@wp.func
+def pixel_tile(view: View, px: int, py: int) -> int:
+    return (py // view.tile_size) * view.tiles_x + px // view.tile_size
+
+
+@wp.func
+def nearest_entry(view: View, geo: Geometry, bins: Bins, tile: int, o: wp.vec3, d: wp.vec3, u: float):
+    """Nearest entry hit by the ray at shutter time u within the clipping range.
+
+    Returns (entry or -1, interpolation alpha, hit (1, depth, w_b, w_c)). Ties in depth go to the
+    lower entry index, so the result is deterministic.
+    """
+    best_e = int(-1)
+    best_alpha = float(0.0)
+    best = wp.vec4(0.0, 0.0, 0.0, 0.0)
+    for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
+        e = bins.tile_entries[i]
+        alpha = entry_alpha(geo, e, u)
+        if alpha >= 0.0:
+            vi = geo.tri_vertices[geo.entry_tri[e]]
+            hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
+                                     entry_vertex(geo, e, vi[2], alpha))
+            if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
+                if best_e < 0 or hit[1] < best[1]:
+                    best_e = e
+                    best_alpha = alpha
+                    best = hit
+    return best_e, best_alpha, best
+
+
+@wp.func
+def to_raster(view: View, p: wp.vec3) -> wp.vec3:
+    """Camera-space point -> (raster x, raster y, 1), or (0, 0, 0) when it is not in front of the eye."""
+    wx = p[0]
+    wy = p[1]
+    if view.ortho == 0:
+        z = -p[2]
+        if z <= 0.0:
+            return wp.vec3(0.0, 0.0, 0.0)
+        wx = wx / z
+        wy = wy / z
+    rx = (wx - view.win_min[0]) / (view.win_max[0] - view.win_min[0]) * float(view.width)
+    ry = (view.win_max[1] - wy) / (view.win_max[1] - view.win_min[1]) * float(view.height)
+    return wp.vec3(rx, ry, 1.0)
+
+
+@wp.kernel(enable_backward=False)
+def render_sharp(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float, first_pixel: int,
+                 # outputs
+                 rgba: wp.array2d(dtype=float)):
+    """Add weight × (the sharp image at shutter time u) to rgba (H*W, 4)."""
+    pix = first_pixel + wp.tid()
+    px = pix % view.width
+    py = pix // view.width
+    tile = pixel_tile(view, px, py)
+    n = view.spatial
+    color = wp.vec3(0.0, 0.0, 0.0)
+    cover = float(0.0)
+    for sy in range(n):
+        for sx in range(n):
+            x = float(px) + (float(sx) + 0.5) / float(n)
+            y = float(py) + (float(sy) + 0.5) / float(n)
+            o = pixel_ray_origin(view, x, y)
+            d = pixel_ray_direction(view, x, y)
+            e, alpha, hit = nearest_entry(view, geo, bins, tile, o, d, u)
+            if e >= 0:
+                color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
+                cover = cover + 1.0
+            else:
+                color = color + sh.dome
+    w = weight / float(n * n)
+    rgba[pix, 0] = rgba[pix, 0] + w * color[0]
+    rgba[pix, 1] = rgba[pix, 1] + w * color[1]
+    rgba[pix, 2] = rgba[pix, 2] + w * color[2]
+    rgba[pix, 3] = rgba[pix, 3] + w * cover
+
+
+@wp.kernel(enable_backward=False)
+def render_depth_motion(view: View, geo: Geometry, bins: Bins, u: float, k_open: int, k_close: int,
+                        first_pixel: int,
+                        # outputs
+                        depth: wp.array(dtype=float), motion: wp.array(dtype=wp.vec2)):
+    """Z (view depth at shutter time u, inf where nothing is seen) and the screen motion in pixels
+    of the seen point from knot k_open to knot k_close (x right, y down; 0 where nothing is seen)."""
+    pix = first_pixel + wp.tid()
+    px = pix % view.width
+    py = pix // view.width
+    x = float(px) + 0.5
+    y = float(py) + 0.5
+    o = pixel_ray_origin(view, x, y)
+    d = pixel_ray_direction(view, x, y)
+    e, alpha, hit = nearest_entry(view, geo, bins, pixel_tile(view, px, py), o, d, u)
+    if e < 0:
+        depth[pix] = wp.inf
+        motion[pix] = wp.vec2(0.0, 0.0)
+        return
+    depth[pix] = hit[1]
+    vi = geo.tri_vertices[geo.entry_tri[e]]
+    wb = hit[2]
+    wc = hit[3]
+    wa = 1.0 - wb - wc
+    p0 = wa * geo.positions[k_open, vi[0]] + wb * geo.positions[k_open, vi[1]] + wc * geo.positions[k_open, vi[2]]
+    p1 = wa * geo.positions[k_close, vi[0]] + wb * geo.positions[k_close, vi[1]] + wc * geo.positions[k_close, vi[2]]
+    r0 = to_raster(view, p0)
+    r1 = to_raster(view, p1)
+    if r0[2] > 0.0 and r1[2] > 0.0:
+        motion[pix] = wp.vec2(r1[0] - r0[0], r1[1] - r0[1])
+    else:
+        motion[pix] = wp.vec2(0.0, 0.0)

@@ -1,0 +1,103 @@
+"""Pixel rays and the watertight ray-triangle test shared by every method (@wp.func only).
+
+Edge functions are triple products e_ab = d · ((a-o) × (b-o)): the ray passes on the same side of
+all three edges when it hits the triangle, whatever its orientation (back faces are never culled).
+A shared edge gives exactly opposite values in its two triangles, and a sample exactly on it is
+owned by one of them (`edge_owns`), so meshes are watertight, pixel centres on edges included.
+The same formulas handle vertices behind the eye: the hit point's view depth is tested against
+the near and far planes per sample, so triangles crossing the near plane are clipped exactly.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from .kernel_types import Geometry, View
+
+
+@wp.func
+def pixel_ray_origin(view: View, x: float, y: float) -> wp.vec3:
+    """Camera-space ray origin for a raster position (x, y in pixels, y down)."""
+    wx = view.win_min[0] + (x / float(view.width)) * (view.win_max[0] - view.win_min[0])
+    wy = view.win_max[1] - (y / float(view.height)) * (view.win_max[1] - view.win_min[1])
+    if view.ortho != 0:
+        return wp.vec3(wx, wy, 0.0)
+    return wp.vec3(0.0, 0.0, 0.0)
+
+
+@wp.func
+def pixel_ray_direction(view: View, x: float, y: float) -> wp.vec3:
+    """Camera-space ray direction (not unit: its z is -1, so the ray parameter is view depth)."""
+    wx = view.win_min[0] + (x / float(view.width)) * (view.win_max[0] - view.win_min[0])
+    wy = view.win_max[1] - (y / float(view.height)) * (view.win_max[1] - view.win_min[1])
+    if view.ortho != 0:
+        return wp.vec3(0.0, 0.0, -1.0)
+    return wp.vec3(wx, wy, -1.0)
+
+
+@wp.func
+def edge_owns(c: wp.vec3) -> bool:
+    """Tie rule for a sample exactly on an edge: exactly one of c and -c owns it."""
+    if c[0] != 0.0:
+        return c[0] > 0.0
+    if c[1] != 0.0:
+        return c[1] > 0.0
+    return c[2] > 0.0
+
+
+@wp.func
+def intersect_triangle(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.vec4:
+    """(hit 0/1, view depth, barycentric of b, barycentric of c) of the line o + t d and abc.
+
+    The caller checks depth against the near/far planes (which also rejects hits behind the eye).
+    """
+    ao = a - o
+    bo = b - o
+    co = c - o
+    c_ab = wp.cross(ao, bo)
+    c_bc = wp.cross(bo, co)
+    c_ca = wp.cross(co, ao)
+    e_ab = wp.dot(d, c_ab)
+    e_bc = wp.dot(d, c_bc)
+    e_ca = wp.dot(d, c_ca)
+    s = e_ab + e_bc + e_ca
+    if s == 0.0:
+        return wp.vec4(0.0, 0.0, 0.0, 0.0)
+    pos = (e_ab > 0.0 or (e_ab == 0.0 and edge_owns(c_ab))) and (e_bc > 0.0 or (e_bc == 0.0 and edge_owns(c_bc))) and (e_ca > 0.0 or (e_ca == 0.0 and edge_owns(c_ca)))
+    neg = (e_ab < 0.0 or (e_ab == 0.0 and edge_owns(-c_ab))) and (e_bc < 0.0 or (e_bc == 0.0 and edge_owns(-c_bc))) and (e_ca < 0.0 or (e_ca == 0.0 and edge_owns(-c_ca)))
+    if not (pos or neg):
+        return wp.vec4(0.0, 0.0, 0.0, 0.0)
+    wa = e_bc / s
+    wb = e_ca / s
+    wc = e_ab / s
+    p = wa * a + wb * b + wc * c
+    return wp.vec4(1.0, -p[2], wb, wc)
+
+
+@wp.func
+def entry_alpha(geo: Geometry, e: int, u: float) -> float:
+    """Interpolation weight of knot k1 at shutter time u (-1 when u is outside the entry's span)."""
+    k0 = geo.entry_k0[e]
+    k1 = geo.entry_k1[e]
+    if k0 == k1:
+        return 0.0
+    u0 = float(k0) / float(geo.num_segments)
+    u1 = float(k1) / float(geo.num_segments)
+    if u < u0 or u > u1:
+        return -1.0
+    return (u - u0) / (u1 - u0)
+
+
+@wp.func
+def entry_vertex(geo: Geometry, e: int, v: int, alpha: float) -> wp.vec3:
+    """Camera-space position of vertex v of entry e at interpolation weight alpha."""
+    p0 = geo.positions[geo.entry_k0[e], v]
+    p1 = geo.positions[geo.entry_k1[e], v]
+    return p0 + alpha * (p1 - p0)
+
+
+@wp.func
+def entry_normal(geo: Geometry, e: int, v: int, alpha: float) -> wp.vec3:
+    n0 = geo.normals[geo.entry_k0[e], v]
+    n1 = geo.normals[geo.entry_k1[e], v]
+    return n0 + alpha * (n1 - n0)

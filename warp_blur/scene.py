@@ -1,0 +1,403 @@
+"""USD -> NumPy: static topology read once per frame, camera-space snapshots at any shutter time.
+
+Only this module, `stage.py`, `materials.py`, `lights.py` and `tessellate.py` import pxr.
+Positions are composed in float64 on the host and made camera-relative (cam_from_local =
+local_to_world @ world_to_cam, both float64) before kernels see them as float32, so scenes far
+from the origin keep their precision.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from pxr import Usd, UsdGeom, UsdShade
+
+from .errors import InvalidGeometryError
+from .lights import LightPrim, dome_radiance, find_lights, headlight_table, light_table
+from .log import warn_once
+from .materials import MaterialTable
+from .stage import Shutter
+from .tessellate import tessellate_gprim, triangulate
+
+FLAG_DOUBLE_SIDED = 1
+FLAG_SMOOTH = 2
+
+_IMPLICIT = (UsdGeom.Cube, UsdGeom.Sphere, UsdGeom.Cylinder, UsdGeom.Cone, UsdGeom.Capsule, UsdGeom.Plane)
+_SILENT_TYPES = {"Xform", "Scope", "Camera", "", "Material", "Shader", "NodeGraph", "GeomSubset",
+                 "RenderSettings", "RenderProduct", "RenderVar", "SkelRoot", "Skeleton", "SkelAnimation"}
+
+
+@dataclass
+class GeomUnit:
+    """One renderable prim (or one prototype mesh of a PointInstancer with all its instances)."""
+
+    path: str
+    prim: Usd.Prim
+    local_tris: np.ndarray            # (T, 3) int32 indices into the unit's local points
+    num_points: int
+    points_at: Callable[[float], np.ndarray]          # time -> (N, 3) float64 local points
+    transforms_at: Callable[[float, UsdGeom.XformCache], np.ndarray]  # -> (I, 4, 4) float64
+    num_instances: int
+    tri_colors: np.ndarray            # (T, 3) float32 displayColor per triangle
+    material: int
+    flags: int
+    blur_scale: float = 1.0
+    visibility_prims: list = field(default_factory=list)
+
+    def visible_at(self, time: float) -> bool:
+        t = Usd.TimeCode(time)
+        return all(UsdGeom.Imageable(p).ComputeVisibility(t) != UsdGeom.Tokens.invisible
+                   for p in self.visibility_prims)
+
+
+@dataclass
+class Snapshot:
+    """The scene at one shutter instant, in camera space.
+
+    positions: (V, 3) float64 camera-space vertices; normals: (V, 3) float32 smooth vertex normals;
+    tri_visible: (T,) bool; lights: (NL, LIGHT_WIDTH) float32; cam_from_world: (4, 4) float64.
+    """
+
+    time: float
+    positions: np.ndarray
+    normals: np.ndarray
+    tri_visible: np.ndarray
+    lights: np.ndarray
+    cam_from_world: np.ndarray
+
+
+def _display_colors(prim: Usd.Prim, time: Usd.TimeCode, face_of_tri: np.ndarray, tris: np.ndarray,
+                    counts: np.ndarray | None) -> np.ndarray:
+    """(T, 3) displayColor per triangle (grey 0.5 when absent, as UsdImaging does)."""
+    n = len(tris)
+    default = np.full((n, 3), 0.5, np.float32)
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
+    if not pv or not pv.HasValue():
+        return default
+    vals = pv.ComputeFlattened(time)
+    if vals is None or len(vals) == 0:
+        return default
+    vals = np.asarray(vals, np.float32).reshape(-1, 3)
+    interp = pv.GetInterpolation()
+    try:
+        if interp == UsdGeom.Tokens.constant or len(vals) == 1:
+            return np.broadcast_to(vals[0], (n, 3)).copy()
+        if interp == UsdGeom.Tokens.uniform:
+            return vals[face_of_tri]
+        if interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
+            return vals[tris].mean(axis=1)
+        if interp == UsdGeom.Tokens.faceVarying and counts is not None:
+            starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+            face_avg = np.stack([vals[s:s + c].mean(axis=0) for s, c in zip(starts, counts)])
+            return face_avg[face_of_tri]
+    except IndexError:
+        pass
+    warn_once(f"displayColor:{prim.GetPath()}", f"{prim.GetPath()}: displayColor does not match the topology; using grey")
+    return default
+
+
+class Scene:
+    """Renderable geometry, materials and lights of a stage for one frame.
+
+    Static data (topology, materials) is read once; `snapshot(time)` samples what moves.
+    """
+
+    def __init__(self, stage: Usd.Stage, camera: UsdGeom.Camera, frame: float, shutter: Shutter,
+                 skip_invalid: bool = False) -> None:
+        self.stage = stage
+        self.camera = camera
+        self.frame = frame
+        self.shutter = shutter
+        self.skip_invalid = skip_invalid
+        self.materials = MaterialTable(frame)
+        self.units: list[GeomUnit] = []
+        self._xf_caches: dict[float, UsdGeom.XformCache] = {}
+        self._collect()
+        self.light_prims, dome = find_lights(stage)
+        self.dome = dome_radiance(dome, frame)
+        self.has_dome = dome is not None
+        self.headlight = not self.light_prims and dome is None
+        self._build_tables()
+
+    # ----------------------------------------------------------------------------- collection
+    def _xf_cache(self, time: float) -> UsdGeom.XformCache:
+        cache = self._xf_caches.get(time)
+        if cache is None:
+            if len(self._xf_caches) > 64:
+                self._xf_caches.clear()
+            cache = self._xf_caches[time] = UsdGeom.XformCache(Usd.TimeCode(time))
+        return cache
+
+    def _invalid(self, path: str, problem: str) -> bool:
+        """Handle invalid geometry: raise, or warn and tell the caller to drop the prim."""
+        if not self.skip_invalid:
+            raise InvalidGeometryError(path, problem)
+        warn_once(f"invalid:{path}", f"dropping {path}: {problem}")
+        return True
+
+    def _collect(self) -> None:
+        t = Usd.TimeCode(self.frame)
+        it = iter(Usd.PrimRange(self.stage.GetPseudoRoot(), Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)))
+        for prim in it:
+            if not prim.IsA(UsdGeom.Imageable):
+                if prim.GetTypeName() not in _SILENT_TYPES and not prim.IsPseudoRoot():
+                    pass
+                continue
+            purpose = UsdGeom.Imageable(prim).ComputePurpose()
+            if purpose in (UsdGeom.Tokens.proxy, UsdGeom.Tokens.guide):
+                it.PruneChildren()
+                continue
+            if prim.IsA(UsdGeom.PointInstancer):
+                self._add_instancer(prim, t)
+                it.PruneChildren()
+            elif prim.IsA(UsdGeom.Mesh):
+                self._add_mesh(prim, t)
+            elif any(prim.IsA(c) for c in _IMPLICIT):
+                self._add_gprim(prim, t)
+            elif prim.IsA(UsdGeom.Gprim) or prim.GetTypeName() not in _SILENT_TYPES and not _is_light(prim):
+                warn_once(f"unsupported:{prim.GetPath()}",
+                          f"{prim.GetPath()}: prim type {prim.GetTypeName()} is not rendered")
+
+    def _mesh_topology(self, prim: Usd.Prim, t: Usd.TimeCode):
+        mesh = UsdGeom.Mesh(prim)
+        counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(t) or [], np.int64)
+        indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(t) or [], np.int64)
+        holes = np.asarray(mesh.GetHoleIndicesAttr().Get(t) or [], np.int64)
+        left = mesh.GetOrientationAttr().Get(t) == UsdGeom.Tokens.leftHanded
+        points = mesh.GetPointsAttr().Get(t)
+        npts = 0 if points is None else len(points)
+        path = str(prim.GetPath())
+        if counts.sum() != len(indices):
+            return None if self._invalid(path, "faceVertexCounts do not add up to faceVertexIndices") else None
+        if len(indices) and (indices.min() < 0 or indices.max() >= npts):
+            bad = int(indices[(indices < 0) | (indices >= npts)][0])
+            return None if self._invalid(path, f"face index {bad} out of range (mesh has {npts} points)") else None
+        tris, face_of_tri = triangulate(counts, indices, holes, left)
+        scheme = mesh.GetSubdivisionSchemeAttr().Get(t)
+        smooth = scheme not in (None, UsdGeom.Tokens.none)
+        return tris, face_of_tri, counts, npts, smooth
+
+    def _points_fn(self, prim: Usd.Prim, npts: int) -> Callable[[float], np.ndarray]:
+        """Local points at a time: USD's interpolation, velocities/accelerations applied by USD."""
+        pb = UsdGeom.PointBased(prim)
+        attr = pb.GetPointsAttr()
+        has_vel = pb.GetVelocitiesAttr().HasAuthoredValue()
+        path = str(prim.GetPath())
+        base = self.frame
+        static = not attr.ValueMightBeTimeVarying() and not has_vel
+        cached: dict[str, np.ndarray] = {}
+
+        def points_at(time: float) -> np.ndarray:
+            if static and "p" in cached:
+                return cached["p"]
+            pts = None
+            if has_vel:
+                pts = pb.ComputePointsAtTime(Usd.TimeCode(time), Usd.TimeCode(base))
+            if pts is None or len(pts) != npts:
+                pts = attr.Get(Usd.TimeCode(time))
+            arr = np.asarray(pts, np.float64).reshape(-1, 3) if pts is not None else np.zeros((0, 3))
+            if len(arr) != npts:
+                warn_once(f"ptcount:{path}", f"{path}: point count changes over time; holding the frame's points")
+                arr = np.asarray(attr.Get(Usd.TimeCode(base)), np.float64).reshape(-1, 3)
+            if not np.isfinite(arr).all():
+                raise InvalidGeometryError(path, f"non-finite points at time {time}")
+            if static:
+                cached["p"] = arr
+            return arr
+
+        return points_at
+
+    def _prim_transform_fn(self, prim: Usd.Prim):
+        def transforms_at(time: float, cache: UsdGeom.XformCache) -> np.ndarray:
+            return np.array(cache.GetLocalToWorldTransform(prim), np.float64)[None]
+        return transforms_at
+
+    def _common(self, prim: Usd.Prim, t: Usd.TimeCode) -> tuple[int, int, float]:
+        gprim = UsdGeom.Gprim(prim)
+        flags = FLAG_DOUBLE_SIDED if gprim.GetDoubleSidedAttr().Get(t) else 0
+        blur = UsdGeom.MotionAPI(prim).ComputeMotionBlurScale(t) if hasattr(UsdGeom, "MotionAPI") else 1.0
+        return self.materials.index_for_prim(prim), flags, float(blur)
+
+    def _add_mesh(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
+        topo = self._mesh_topology(prim, t)
+        if topo is None:
+            return
+        tris, face_of_tri, counts, npts, smooth = topo
+        path = str(prim.GetPath())
+        points_at = self._points_fn(prim, npts)
+        try:
+            points_at(self.frame)
+        except InvalidGeometryError:
+            if self._invalid(path, "non-finite points"):
+                return
+        if len(tris) == 0:
+            return
+        material, flags, blur = self._common(prim, t)
+        if smooth:
+            flags |= FLAG_SMOOTH
+        self.units.append(GeomUnit(
+            path=path, prim=prim, local_tris=tris, num_points=npts, points_at=points_at,
+            transforms_at=self._prim_transform_fn(prim), num_instances=1,
+            tri_colors=_display_colors(prim, t, face_of_tri, tris, counts), material=material,
+            flags=flags, blur_scale=blur, visibility_prims=[prim]))
+
+    def _add_gprim(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
+        out = tessellate_gprim(prim, t)
+        if out is None:
+            return
+        pts, tris, smooth = out
+        material, flags, blur = self._common(prim, t)
+        if smooth:
+            flags |= FLAG_SMOOTH
+        face_of_tri = np.arange(len(tris))
+        self.units.append(GeomUnit(
+            path=str(prim.GetPath()), prim=prim, local_tris=tris, num_points=len(pts),
+            points_at=lambda time, p=pts: p, transforms_at=self._prim_transform_fn(prim), num_instances=1,
+            tri_colors=_display_colors(prim, t, face_of_tri, tris, None), material=material,
+            flags=flags, blur_scale=blur, visibility_prims=[prim]))
+
+    def _add_instancer(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
+        inst = UsdGeom.PointInstancer(prim)
+        path = str(prim.GetPath())
+        protos = inst.GetPrototypesRel().GetForwardedTargets()
+        proto_indices = np.asarray(inst.GetProtoIndicesAttr().Get(t) or [], np.int64)
+        if len(proto_indices) == 0:
+            return
+        mask = inst.ComputeMaskAtTime(t)
+        mask = np.ones(len(proto_indices), bool) if not mask else np.asarray(mask, bool)
+        base = self.frame
+        n_all = len(proto_indices)
+
+        def all_transforms(time: float) -> np.ndarray:
+            xf = inst.ComputeInstanceTransformsAtTime(Usd.TimeCode(time), Usd.TimeCode(base))
+            if xf is None or len(xf) != n_all:
+                warn_once(f"instcount:{path}", f"{path}: instance count changes over time; holding the frame's instances")
+                xf = inst.ComputeInstanceTransformsAtTime(Usd.TimeCode(base), Usd.TimeCode(base))
+            return np.array([np.array(m, np.float64) for m in xf]).reshape(-1, 4, 4)
+
+        for pi, proto_path in enumerate(protos):
+            sel = np.nonzero((proto_indices == pi) & mask)[0]
+            proto_root = self.stage.GetPrimAtPath(proto_path)
+            if len(sel) == 0 or not proto_root:
+                continue
+            rng = iter(Usd.PrimRange(proto_root, Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)))
+            for sub in rng:
+                if UsdGeom.Imageable(sub).ComputePurpose() in (UsdGeom.Tokens.proxy, UsdGeom.Tokens.guide):
+                    rng.PruneChildren()
+                    continue
+                if sub.IsA(UsdGeom.Mesh):
+                    topo = self._mesh_topology(sub, t)
+                    if topo is None:
+                        continue
+                    tris, face_of_tri, counts, npts, smooth = topo
+                    points_at = self._points_fn(sub, npts)
+                    colors = _display_colors(sub, t, face_of_tri, tris, counts)
+                elif any(sub.IsA(c) for c in _IMPLICIT):
+                    out = tessellate_gprim(sub, t)
+                    if out is None:
+                        continue
+                    pts, tris, smooth = out
+                    npts = len(pts)
+                    points_at = lambda time, p=pts: p  # noqa: E731
+                    colors = _display_colors(sub, t, np.arange(len(tris)), tris, None)
+                else:
+                    continue
+                if len(tris) == 0:
+                    continue
+                material, flags, blur = self._common(sub, t)
+                if smooth:
+                    flags |= FLAG_SMOOTH
+
+                def transforms_at(time: float, cache: UsdGeom.XformCache, sub=sub, root=proto_root,
+                                  sel=sel) -> np.ndarray:
+                    sub_w = np.array(cache.GetLocalToWorldTransform(sub), np.float64)
+                    root_w = np.array(cache.GetLocalToWorldTransform(root), np.float64)
+                    inst_w = np.array(cache.GetLocalToWorldTransform(prim), np.float64)
+                    sub_in_root = sub_w @ np.linalg.inv(root_w)
+                    return sub_in_root[None] @ all_transforms(time)[sel] @ inst_w[None]
+
+                self.units.append(GeomUnit(
+                    path=f"{path}[{proto_path.name}]{sub.GetPath()}", prim=sub, local_tris=tris,
+                    num_points=npts, points_at=points_at, transforms_at=transforms_at,
+                    num_instances=len(sel), tri_colors=colors, material=material, flags=flags,
+                    blur_scale=blur, visibility_prims=[prim, sub]))
+
+    # ----------------------------------------------------------------------------- tables
+    def _build_tables(self) -> None:
+        tris, colors, mats, flags, unit_of_tri = [], [], [], [], []
+        self.unit_vertex_offsets = []
+        v = 0
+        for ui, u in enumerate(self.units):
+            self.unit_vertex_offsets.append(v)
+            for i in range(u.num_instances):
+                tris.append(u.local_tris + v + i * u.num_points)
+            n = len(u.local_tris) * u.num_instances
+            colors.append(np.tile(u.tri_colors, (u.num_instances, 1)))
+            mats.append(np.full(n, u.material, np.int32))
+            flags.append(np.full(n, u.flags, np.int32))
+            unit_of_tri.append(np.full(n, ui, np.int32))
+            v += u.num_points * u.num_instances
+        self.num_vertices = v
+        cat = lambda a, shape, dt: np.concatenate(a).astype(dt) if a else np.zeros(shape, dt)  # noqa: E731
+        self.tri_vertices = cat(tris, (0, 3), np.int32)
+        self.tri_colors = cat(colors, (0, 3), np.float32)
+        self.tri_material = cat(mats, (0,), np.int32)
+        self.tri_flags = cat(flags, (0,), np.int32)
+        self.tri_unit = cat(unit_of_tri, (0,), np.int32)
+        self.material_table = self.materials.array()
+        self.any_smooth = bool((self.tri_flags & FLAG_SMOOTH).any())
+
+    @property
+    def num_triangles(self) -> int:
+        return len(self.tri_vertices)
+
+    # ----------------------------------------------------------------------------- sampling
+    def cam_from_world(self, time: float) -> np.ndarray:
+        """(4, 4) float64 world -> camera matrix (row vectors) at a shutter time."""
+        cam_to_world = np.array(self._xf_cache(time).GetLocalToWorldTransform(self.camera.GetPrim()), np.float64)
+        return np.linalg.inv(cam_to_world)
+
+    def snapshot(self, time: float) -> Snapshot:
+        """The scene at USD time `time` (within the shutter), in camera space."""
+        cam_from_world = self.cam_from_world(time)
+        positions = np.zeros((self.num_vertices, 3), np.float64)
+        unit_visible = np.ones(len(self.units), bool)
+        for ui, u in enumerate(self.units):
+            t_prim = self.frame + (time - self.frame) * u.blur_scale
+            cache = self._xf_cache(t_prim)
+            pts = u.points_at(t_prim)
+            m = u.transforms_at(t_prim, cache) @ cam_from_world[None]       # (I, 4, 4) cam_from_local
+            p = np.einsum("nj,ijk->ink", pts, m[:, :3, :3]) + m[:, None, 3, :3]
+            o = self.unit_vertex_offsets[ui]
+            positions[o:o + u.num_points * u.num_instances] = p.reshape(-1, 3)
+            unit_visible[ui] = u.visible_at(t_prim)
+        if not np.isfinite(positions).all():
+            bad = next(u.path for ui, u in enumerate(self.units)
+                       if not np.isfinite(positions[self.unit_vertex_offsets[ui]:self.unit_vertex_offsets[ui] + u.num_points * u.num_instances]).all())
+            raise InvalidGeometryError(bad, f"non-finite transformed points at time {time}")
+        normals = vertex_normals(positions, self.tri_vertices) if self.any_smooth else np.zeros((0, 3), np.float32)
+        if self.headlight:
+            lights = headlight_table()
+        else:
+            lights = light_table(self.light_prims, time, cam_from_world, self._xf_cache(time))
+        return Snapshot(time=time, positions=positions, normals=normals,
+                        tri_visible=unit_visible[self.tri_unit] if len(self.units) else np.zeros(0, bool),
+                        lights=lights, cam_from_world=cam_from_world)
+
+
+def vertex_normals(positions: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """(V, 3) float32 area-weighted, normalised vertex normals of a triangle mesh."""
+    a, b, c = positions[tris[:, 0]], positions[tris[:, 1]], positions[tris[:, 2]]
+    fn = np.cross(b - a, c - a)
+    idx = tris.ravel()
+    n = np.stack([np.bincount(idx, weights=np.repeat(fn[:, k], 3), minlength=len(positions))
+                  for k in range(3)], axis=1)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return (n / np.maximum(length, 1e-30)).astype(np.float32)
+
+
+def _is_light(prim: Usd.Prim) -> bool:
+    from pxr import UsdLux
+    return prim.HasAPI(UsdLux.LightAPI) or prim.IsA(UsdShade.Material)

@@ -1,0 +1,129 @@
+"""Render settings: one keyword-only dataclass, per-method defaults and quality presets (SPEC §6)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+from .errors import SettingsError
+
+METHODS = ("accumulation", "stochastic", "analytic", "velocity")
+QUALITIES = ("draft", "preview", "final")
+TIME_BITS_ALLOWED = (0, 32, 64, 128, 256, 512, 1024)
+
+#: SPEC §6 defaults when no --quality is given.
+DEFAULT_SAMPLES = {"accumulation": 64, "stochastic": 64, "analytic": 16, "velocity": 8}
+DEFAULT_TIME_BITS = 128
+
+#: Quality presets: method -> preset -> {setting: value}. An explicit setting always wins.
+QUALITY_PRESETS: dict[str, dict[str, dict[str, int]]] = {
+    "accumulation": {"draft": {"samples": 8}, "preview": {"samples": 32}, "final": {"samples": 256}},
+    "stochastic": {"draft": {"samples": 8}, "preview": {"samples": 32}, "final": {"samples": 256}},
+    "analytic": {
+        "draft": {"time_bits": 32, "samples": 2},
+        "preview": {"time_bits": 64, "samples": 8},
+        "final": {"time_bits": 256, "samples": 16},
+    },
+    "velocity": {"draft": {"samples": 4}, "preview": {"samples": 8}, "final": {"samples": 16}},
+}
+
+
+@dataclass(frozen=True, kw_only=True)
+class RenderSettings:
+    """Everything that decides a frame's pixels besides the stage and frame.
+
+    Attributes:
+        method: one of METHODS.
+        samples: instants (accumulation), samples per pixel (stochastic), shading-sample cap per
+            interval (analytic) or gather samples (velocity); None = preset or SPEC default.
+        time_bits: analytic bitmask bits per pixel (0 = exact spans); None = preset or 128.
+        quality: optional preset name (draft, preview, final).
+        seed: stochastic seed (stochastic only).
+        spatial_samples: n -> n×n stratified sub-pixel positions (1 = pixel centre).
+        shutter: (open, close) offsets in time codes overriding the camera's shutter.
+        threads: worker threads for tiles (None = every core).
+        aovs: AOV names to compute ("Z", "motion", "coverage").
+        skip_invalid: drop prims with invalid geometry (with a warning) instead of failing.
+        segment_error_px: max screen error of linearised motion segments, pixels.
+        max_segments: upper bound of motion segments per prim (power of two).
+        memory_budget_mb: analytic interval arrays above this render in pixel bands.
+        device: Warp device ("cpu" or "cuda").
+    """
+
+    method: str = "accumulation"
+    samples: int | None = None
+    time_bits: int | None = None
+    quality: str | None = None
+    seed: int | None = None
+    spatial_samples: int = 1
+    shutter: tuple[float, float] | None = None
+    threads: int | None = None
+    aovs: tuple[str, ...] = ("Z", "motion")
+    skip_invalid: bool = False
+    segment_error_px: float = 0.25
+    max_segments: int = 16
+    memory_budget_mb: float = 2048.0
+    device: str = "cpu"
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise SettingsError(f"unknown method '{self.method}' (choose from {', '.join(METHODS)})")
+        if self.quality is not None and self.quality not in QUALITIES:
+            raise SettingsError(f"unknown quality '{self.quality}' (choose from {', '.join(QUALITIES)})")
+        if self.time_bits is not None and self.method != "analytic":
+            raise SettingsError("--time-bits applies to the analytic method only")
+        if self.seed is not None and self.method != "stochastic":
+            raise SettingsError("--seed applies to the stochastic method only")
+        if self.time_bits is not None and self.time_bits not in TIME_BITS_ALLOWED:
+            raise SettingsError(f"time bits must be one of {TIME_BITS_ALLOWED} (0 = exact), got {self.time_bits}")
+        if self.samples is not None and not (1 <= self.samples <= 1 << 16):
+            raise SettingsError(f"samples must be between 1 and 65536, got {self.samples}")
+        if self.spatial_samples < 1 or self.spatial_samples > 16:
+            raise SettingsError(f"spatial samples must be between 1 and 16, got {self.spatial_samples}")
+        if self.threads is not None and self.threads < 1:
+            raise SettingsError(f"threads must be at least 1, got {self.threads}")
+        if self.max_segments < 1 or self.max_segments & (self.max_segments - 1):
+            raise SettingsError("max_segments must be a power of two")
+        bad = [a for a in self.aovs if a not in ("Z", "motion", "coverage")]
+        if bad:
+            raise SettingsError(f"unknown AOV '{bad[0]}' (choose from Z, motion, coverage)")
+
+    def _preset(self, name: str) -> int | None:
+        if self.quality is None:
+            return None
+        return QUALITY_PRESETS[self.method][self.quality].get(name)
+
+    @property
+    def resolved_samples(self) -> int:
+        """Samples after explicit value > quality preset > SPEC default."""
+        if self.samples is not None:
+            return self.samples
+        preset = self._preset("samples")
+        return preset if preset is not None else DEFAULT_SAMPLES[self.method]
+
+    @property
+    def resolved_time_bits(self) -> int:
+        """Analytic time bits after explicit value > quality preset > 128."""
+        if self.time_bits is not None:
+            return self.time_bits
+        preset = self._preset("time_bits")
+        return preset if preset is not None else DEFAULT_TIME_BITS
+
+    @property
+    def resolved_seed(self) -> int:
+        return 0 if self.seed is None else self.seed
+
+    def replace(self, **changes) -> "RenderSettings":
+        return dataclasses.replace(self, **changes)
+
+    def describe(self) -> dict:
+        """Settings that decide pixels, as plain values (EXR header, --resume fingerprint)."""
+        d = {"method": self.method, "samples": self.resolved_samples,
+             "spatial_samples": self.spatial_samples, "shutter": self.shutter,
+             "segment_error_px": self.segment_error_px, "max_segments": self.max_segments}
+        if self.method == "analytic":
+            d["time_bits"] = self.resolved_time_bits
+        if self.method == "stochastic":
+            d["seed"] = self.resolved_seed
+        return d

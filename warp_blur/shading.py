@@ -1,0 +1,152 @@
+"""Surface shading (SPEC §4) as Warp functions shared by every method.
+
+Model: radiance = emissive + Σ_lights f(l, v) E_l cosθ + (diffuse + F0) · dome, where
+f = diffuse/π + D·G·F / (4 cosθ_l cosθ_v) with GGX D (α = roughness²), Schlick-GGX G
+(k = α/2) and Schlick F from F0. A material with black diffuse and black F0 returns its
+emissive colour exactly, whatever the lights and the dome. Double-sided back faces are shaded
+with the flipped normal; single-sided back faces keep the front normal. Opacity is ignored
+(rendered opaque, with a warning at load time).
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from .kernel_types import Geometry, Shading, View
+from .rays import entry_normal, entry_vertex
+
+PI = wp.constant(3.14159265358979)
+
+
+@wp.func
+def light_value(sh: Shading, j: int, col: int, u: float) -> float:
+    """Column `col` of light j at shutter time u (linear between the light knots)."""
+    if sh.light_segments == 0:
+        return sh.lights[0, j, col]
+    x = wp.clamp(u, 0.0, 1.0) * float(sh.light_segments)
+    k = wp.min(int(x), sh.light_segments - 1)
+    f = x - float(k)
+    return sh.lights[k, j, col] * (1.0 - f) + sh.lights[k + 1, j, col] * f
+
+
+@wp.func
+def light_vec(sh: Shading, j: int, col: int, u: float) -> wp.vec3:
+    return wp.vec3(light_value(sh, j, col, u), light_value(sh, j, col + 1, u), light_value(sh, j, col + 2, u))
+
+
+@wp.func
+def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, diffuse: wp.vec3, f0: wp.vec3, roughness: float) -> wp.vec3:
+    """Lambert + GGX microfacet BRDF (1/sr)."""
+    nl = wp.dot(n, l)
+    nv = wp.dot(n, v)
+    result = diffuse / PI
+    if nl > 0.0 and nv > 0.0 and wp.length(f0) > 0.0:
+        h = wp.normalize(l + v)
+        nh = wp.max(wp.dot(n, h), 0.0)
+        vh = wp.max(wp.dot(v, h), 0.0)
+        a = roughness * roughness
+        a2 = a * a
+        den = nh * nh * (a2 - 1.0) + 1.0
+        dist = a2 / (PI * den * den)
+        k = a * 0.5
+        g = (nl / (nl * (1.0 - k) + k)) * (nv / (nv * (1.0 - k) + k))
+        fw = wp.pow(1.0 - vh, 5.0)
+        fres = f0 + (wp.vec3(1.0, 1.0, 1.0) - f0) * fw
+        result = result + fres * (dist * g / (4.0 * nl * nv))
+    return result
+
+
+@wp.func
+def direct_light(sh: Shading, j: int, u: float, p: wp.vec3, n: wp.vec3, v: wp.vec3,
+                 diffuse: wp.vec3, f0: wp.vec3, roughness: float) -> wp.vec3:
+    """Reflected radiance from light j at camera-space point p with normal n, view vector v."""
+    kind = int(sh.lights[0, j, 0])
+    radiance = light_vec(sh, j, 1, u)
+    out = wp.vec3(0.0, 0.0, 0.0)
+    if kind == 0:
+        l = wp.normalize(light_vec(sh, j, 7, u))
+        cos_s = wp.dot(n, l)
+        if cos_s > 0.0:
+            out = wp.cw_mul(brdf(n, v, l, diffuse, f0, roughness), radiance) * cos_s
+    elif kind == 1:
+        r = light_value(sh, j, 16, u)
+        r_eff = r
+        if r_eff <= 0.0:
+            r_eff = 0.5
+        to_light = light_vec(sh, j, 4, u) - p
+        dist2 = wp.max(wp.dot(to_light, to_light), 1.0e-12)
+        l = to_light / wp.sqrt(dist2)
+        cos_s = wp.dot(n, l)
+        if cos_s > 0.0:
+            e = PI * r_eff * r_eff / wp.max(dist2, r * r)
+            out = wp.cw_mul(brdf(n, v, l, diffuse, f0, roughness), radiance) * (e * cos_s)
+    else:
+        center = light_vec(sh, j, 4, u)
+        ln = wp.normalize(light_vec(sh, j, 7, u))
+        hu = light_vec(sh, j, 10, u)
+        hv = light_vec(sh, j, 13, u)
+        area = 4.0 * wp.length(wp.cross(hu, hv))
+        if kind == 3:
+            area = PI * wp.length(wp.cross(hu, hv))
+        for i in range(4):
+            for k in range(4):
+                su = (float(i) + 0.5) * 0.5 - 1.0
+                sv = (float(k) + 0.5) * 0.5 - 1.0
+                if kind == 3:  # concentric square -> disk map
+                    rr = wp.max(wp.abs(su), wp.abs(sv))
+                    phi = 0.0
+                    if wp.abs(su) >= wp.abs(sv):
+                        phi = (PI / 4.0) * (sv / su)
+                    else:
+                        phi = PI / 2.0 - (PI / 4.0) * (su / sv)
+                    su = rr * wp.cos(phi)
+                    sv = rr * wp.sin(phi)
+                q = center + su * hu + sv * hv
+                to_light = q - p
+                dist2 = wp.max(wp.dot(to_light, to_light), 1.0e-12)
+                l = to_light / wp.sqrt(dist2)
+                cos_s = wp.dot(n, l)
+                cos_l = -wp.dot(ln, l)
+                if cos_s > 0.0 and cos_l > 0.0:
+                    e = cos_l * area / (16.0 * dist2)
+                    out = out + wp.cw_mul(brdf(n, v, l, diffuse, f0, roughness), radiance) * (e * cos_s)
+    return out
+
+
+@wp.func
+def shade_entry_hit(view: View, geo: Geometry, sh: Shading, e: int, alpha: float, u: float,
+                    o: wp.vec3, d: wp.vec3, hit: wp.vec4) -> wp.vec3:
+    """Radiance leaving the hit point of entry e (at interpolation alpha, shutter time u)."""
+    tri = geo.entry_tri[e]
+    m = geo.tri_material[tri]
+    emissive = wp.vec3(sh.materials[m, 3], sh.materials[m, 4], sh.materials[m, 5])
+    diffuse = wp.vec3(sh.materials[m, 0], sh.materials[m, 1], sh.materials[m, 2])
+    if sh.materials[m, 10] > 0.5:
+        diffuse = geo.tri_colors[tri]
+    f0 = wp.vec3(sh.materials[m, 6], sh.materials[m, 7], sh.materials[m, 8])
+    if wp.length(diffuse) == 0.0 and wp.length(f0) == 0.0:
+        return emissive
+    roughness = sh.materials[m, 9]
+    vi = geo.tri_vertices[tri]
+    a = entry_vertex(geo, e, vi[0], alpha)
+    b = entry_vertex(geo, e, vi[1], alpha)
+    c = entry_vertex(geo, e, vi[2], alpha)
+    p = o + d * hit[1]
+    v = wp.vec3(0.0, 0.0, 1.0)
+    if view.ortho == 0:
+        v = wp.normalize(-p)
+    ng = wp.normalize(wp.cross(b - a, c - a))
+    flags = geo.tri_flags[tri]
+    n = ng
+    if (flags & 2) != 0:
+        wb = hit[2]
+        wc = hit[3]
+        ns = (1.0 - wb - wc) * entry_normal(geo, e, vi[0], alpha) + wb * entry_normal(geo, e, vi[1], alpha) + wc * entry_normal(geo, e, vi[2], alpha)
+        if wp.length(ns) > 0.0:
+            n = wp.normalize(ns)
+    if wp.dot(ng, v) < 0.0 and (flags & 1) != 0:
+        n = -n
+    out = emissive + wp.cw_mul(diffuse + f0, sh.dome)
+    for j in range(sh.num_lights):
+        out = out + direct_light(sh, j, u, p, n, v, diffuse, f0, roughness)
+    return out

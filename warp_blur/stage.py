@@ -1,0 +1,217 @@
+"""Opening stages and resolving what a render needs from them: camera, resolution, shutter, frames.
+
+Precedence (SPEC §3): explicit argument > UsdRenderSettings > stage default.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass
+
+from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdRender, UsdUtils
+
+from .camera import Projection, conform_window
+from .errors import StageError, UserError
+from .log import warn_once
+
+DEFAULT_RESOLUTION = (640, 480)
+
+
+def open_stage(path: str) -> Usd.Stage:
+    """Open a USD stage, turning every failure into a one-line StageError."""
+    if not os.path.exists(path):
+        raise StageError(f"stage not found: {path}")
+    if os.path.isdir(path):
+        raise StageError(f"stage path is a directory: {path}")
+    try:
+        stage = Usd.Stage.Open(path)
+    except Tf.ErrorException as exc:
+        first = str(exc).strip().splitlines()
+        detail = next((ln.strip() for ln in first if ln.strip() and not ln.strip().startswith("Error in")), "")
+        raise StageError(f"cannot read stage {path}: {detail or 'invalid USD'}") from None
+    if stage is None:
+        raise StageError(f"cannot read stage {path}")
+    return stage
+
+
+def render_settings_prim(stage: Usd.Stage) -> UsdRender.Settings | None:
+    """The stage's UsdRenderSettings: the one named in the stage metadata, else the first found."""
+    settings = UsdRender.Settings.GetStageRenderSettings(stage)
+    if settings and settings.GetPrim().IsValid():
+        return settings
+    for prim in stage.Traverse():
+        if prim.IsA(UsdRender.Settings):
+            return UsdRender.Settings(prim)
+    return None
+
+
+def choose_camera(stage: Usd.Stage, camera: str | None) -> UsdGeom.Camera:
+    """SPEC §3: the argument, else the render settings' camera, else the first camera found."""
+    if camera:
+        prim = stage.GetPrimAtPath(camera) if Sdf.Path.IsValidPathString(camera) else None
+        if not prim or not prim.IsValid():
+            raise StageError(f"camera {camera} not found in the stage")
+        if not prim.IsA(UsdGeom.Camera):
+            raise StageError(f"{camera} is a {prim.GetTypeName() or 'typeless prim'}, not a Camera")
+        return UsdGeom.Camera(prim)
+    settings = render_settings_prim(stage)
+    if settings:
+        targets = settings.GetCameraRel().GetTargets()
+        if targets:
+            prim = stage.GetPrimAtPath(targets[0])
+            if prim and prim.IsA(UsdGeom.Camera):
+                return UsdGeom.Camera(prim)
+            warn_once(f"settings-camera:{targets[0]}",
+                      f"render settings name camera {targets[0]}, which is not a Camera; using the first camera")
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
+        if prim.IsA(UsdGeom.Camera):
+            return UsdGeom.Camera(prim)
+    raise StageError("the stage has no camera (add a UsdGeom.Camera or pass --camera)")
+
+
+def choose_resolution(stage: Usd.Stage, resolution: tuple[int, int] | None) -> tuple[int, int]:
+    """SPEC §3: the argument, else UsdRenderSettings' resolution, else 640×480."""
+    if resolution is None:
+        settings = render_settings_prim(stage)
+        res = settings.GetResolutionAttr().Get() if settings else None
+        resolution = (int(res[0]), int(res[1])) if res is not None and settings.GetResolutionAttr().HasAuthoredValue() else DEFAULT_RESOLUTION
+    w, h = resolution
+    if w <= 0 or h <= 0 or w > 16384 or h > 16384:
+        raise UserError(f"resolution must be between 1x1 and 16384x16384, got {w}x{h}")
+    return int(w), int(h)
+
+
+def projection_at(camera: UsdGeom.Camera, frame: float, resolution: tuple[int, int],
+                  conform_policy: str = "expandAperture") -> Projection:
+    """Camera intrinsics read at the frame time, conformed to the image aspect (SPEC §3)."""
+    gf_cam: Gf.Camera = camera.GetCamera(Usd.TimeCode(frame))
+    window = gf_cam.frustum.GetWindow()
+    w, h = resolution
+    win = conform_window((window.GetMin()[0], window.GetMin()[1], window.GetMax()[0], window.GetMax()[1]),
+                         w / h, conform_policy)
+    near, far = gf_cam.clippingRange.min, gf_cam.clippingRange.max
+    if not (near > 0 and far > near and math.isfinite(near)):
+        raise StageError(f"camera {camera.GetPath()} has an invalid clipping range ({near}, {far})")
+    return Projection(orthographic=gf_cam.projection == Gf.Camera.Orthographic, window=win,
+                      near=float(near), far=float(far), width=w, height=h)
+
+
+def conform_policy(stage: Usd.Stage) -> str:
+    settings = render_settings_prim(stage)
+    if settings:
+        policy = settings.GetAspectRatioConformPolicyAttr().Get()
+        if policy:
+            return str(policy)
+    return "expandAperture"
+
+
+@dataclass(frozen=True)
+class Shutter:
+    """The exposure interval of a frame in time codes; `exposed` is False when close < open."""
+
+    open: float
+    close: float
+
+    @property
+    def exposed(self) -> bool:
+        return self.close >= self.open
+
+    @property
+    def instant(self) -> bool:
+        return self.close == self.open
+
+    def time(self, u: float) -> float:
+        """USD time code at shutter fraction u in [0, 1]."""
+        return self.open + u * (self.close - self.open)
+
+
+def shutter_for_frame(stage: Usd.Stage, camera: UsdGeom.Camera, frame: float,
+                      override: tuple[float, float] | None) -> Shutter:
+    """SPEC §2: [F + open, F + close] from the camera (or --shutter); warnings for odd cases."""
+    settings = render_settings_prim(stage)
+    if settings and settings.GetDisableMotionBlurAttr().Get():
+        return Shutter(frame, frame)
+    if override is not None:
+        o, c = override
+    else:
+        open_attr, close_attr = camera.GetShutterOpenAttr(), camera.GetShutterCloseAttr()
+        if not (open_attr.HasAuthoredValue() or close_attr.HasAuthoredValue()):
+            warn_once(f"shutter:{camera.GetPath()}",
+                      f"camera {camera.GetPath()} has no authored shutter: USD's fallback [0, 0] renders a sharp frame "
+                      f"(use --shutter OPEN:CLOSE to blur)")
+        o = float(open_attr.Get(Usd.TimeCode(frame)) or 0.0)
+        c = float(close_attr.Get(Usd.TimeCode(frame)) or 0.0)
+    if c < o:
+        warn_once(f"shutter-neg:{camera.GetPath()}:{o}:{c}",
+                  f"shutter close ({c}) is before open ({o}): no exposure, the frame is black")
+    return Shutter(frame + o, frame + c)
+
+
+def parse_shutter(text: str) -> tuple[float, float]:
+    """'OPEN:CLOSE' -> (open, close) offsets."""
+    parts = text.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        o, c = float(parts[0]), float(parts[1])
+        if not (math.isfinite(o) and math.isfinite(c)):
+            raise ValueError
+    except ValueError:
+        raise UserError(f"bad shutter '{text}': expected OPEN:CLOSE, e.g. -0.25:0.25") from None
+    return o, c
+
+
+def parse_resolution(text: str) -> tuple[int, int]:
+    """'WxH' -> (W, H), positive."""
+    m = re.fullmatch(r"\s*(-?\d+)\s*[xX]\s*(-?\d+)\s*", text)
+    if not m:
+        raise UserError(f"bad resolution '{text}': expected WxH, e.g. 640x480")
+    w, h = int(m.group(1)), int(m.group(2))
+    if w <= 0 or h <= 0:
+        raise UserError(f"bad resolution '{text}': width and height must be positive")
+    return w, h
+
+
+def parse_frames(spec: str) -> list[float]:
+    """usdrecord frame specs: '1:24', '1:24x2', '1,5,9' (parsed by USD's own TimeCodeRange)."""
+    frames: list[float] = []
+    for part in spec.split(","):
+        part = part.strip()
+        if not part:
+            raise UserError(f"bad frame spec '{spec}'")
+        try:
+            rng = UsdUtils.TimeCodeRange.CreateFromFrameSpec(part)
+        except Tf.ErrorException:
+            raise UserError(f"bad frame spec '{spec}': expected e.g. 1:24, 1:24x2 or 1,5,9") from None
+        if not rng.IsValid():
+            raise UserError(f"bad frame spec '{spec}'")
+        frames.extend(float(t.GetValue()) for t in rng)
+    if not frames:
+        raise UserError(f"frame spec '{spec}' selects no frame")
+    return frames
+
+
+_HASH_RUN = re.compile(r"(#+)(?:\.(#+))?")
+
+
+def output_path_for_frame(pattern: str, frame: float, num_frames: int) -> str:
+    """Replace the run of '#' in `pattern` by the zero-padded frame ('###.###' for sub-frames)."""
+    m = None
+    for m in _HASH_RUN.finditer(pattern):
+        pass
+    if m is None:
+        if num_frames > 1:
+            raise UserError(f"output '{pattern}' has no '#' run but {num_frames} frames are rendered "
+                            f"(e.g. out/shot.####.exr)")
+        return pattern
+    int_width = len(m.group(1))
+    frac = m.group(2)
+    if frac:
+        text = f"{frame:0{int_width + 1 + len(frac)}.{len(frac)}f}"
+    else:
+        if frame != int(frame):
+            raise UserError(f"frame {frame} is a sub-frame: the output needs a '###.###' pattern")
+        text = f"{int(frame):0{int_width}d}"
+    return pattern[:m.start()] + text + pattern[m.end():]

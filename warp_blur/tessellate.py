@@ -1,0 +1,87 @@
+"""Triangles for USD geometry: polygon meshes fan-triangulated, implicit gprims tessellated (trimesh)."""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+from pxr import Usd, UsdGeom
+
+
+def triangulate(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray | None = None,
+                left_handed: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Fan-triangulate polygons. Returns (tris (T,3) int32, face index of each triangle (T,)).
+
+    Faces with fewer than 3 vertices and hole faces are skipped; leftHanded winding is flipped so
+    that every triangle winds counter-clockwise around its front-face normal.
+    """
+    counts = np.asarray(counts, np.int64)
+    indices = np.asarray(indices, np.int64)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]) if len(counts) else np.zeros(0, np.int64)
+    keep = counts >= 3
+    if holes is not None and len(holes):
+        hole_mask = np.zeros(len(counts), bool)
+        valid = (holes >= 0) & (holes < len(counts))
+        hole_mask[np.asarray(holes)[valid]] = True
+        keep &= ~hole_mask
+    faces = np.nonzero(keep)[0]
+    n_tri = counts[faces] - 2
+    face_of_tri = np.repeat(faces, n_tri)
+    # corner k of the fan within its face: 1 .. count-2
+    first_tri = np.concatenate([[0], np.cumsum(n_tri)[:-1]]) if len(n_tri) else np.zeros(0, np.int64)
+    k = np.arange(len(face_of_tri)) - np.repeat(first_tri, n_tri) + 1
+    s = starts[face_of_tri]
+    tris = np.stack([indices[s], indices[s + k], indices[s + k + 1]], axis=1)
+    if left_handed:
+        tris = tris[:, [0, 2, 1]]
+    return tris.astype(np.int32), face_of_tri
+
+
+def _axis_rotation(axis: str) -> np.ndarray:
+    """4x4 (column-vector) rotation taking trimesh's +Z axis to USD's `axis`."""
+    if axis == "X":
+        return trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0])
+    if axis == "Y":
+        return trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0])
+    return np.eye(4)
+
+
+def tessellate_gprim(prim: Usd.Prim, time: Usd.TimeCode) -> tuple[np.ndarray, np.ndarray, bool] | None:
+    """(points (N,3) float64, tris (T,3) int32, smooth) for an implicit gprim, or None if unknown."""
+    mesh: trimesh.Trimesh
+    smooth = False
+    if prim.IsA(UsdGeom.Cube):
+        size = float(UsdGeom.Cube(prim).GetSizeAttr().Get(time))
+        mesh = trimesh.creation.box(extents=(size, size, size))
+    elif prim.IsA(UsdGeom.Sphere):
+        r = float(UsdGeom.Sphere(prim).GetRadiusAttr().Get(time))
+        mesh = trimesh.creation.icosphere(subdivisions=3, radius=r)
+        smooth = True
+    elif prim.IsA(UsdGeom.Cylinder):
+        g = UsdGeom.Cylinder(prim)
+        mesh = trimesh.creation.cylinder(radius=float(g.GetRadiusAttr().Get(time)),
+                                         height=float(g.GetHeightAttr().Get(time)), sections=32)
+        mesh.apply_transform(_axis_rotation(g.GetAxisAttr().Get(time)))
+    elif prim.IsA(UsdGeom.Cone):
+        g = UsdGeom.Cone(prim)
+        h = float(g.GetHeightAttr().Get(time))
+        mesh = trimesh.creation.cone(radius=float(g.GetRadiusAttr().Get(time)), height=h, sections=32)
+        mesh.apply_translation((0, 0, -h / 2))
+        mesh.apply_transform(_axis_rotation(g.GetAxisAttr().Get(time)))
+    elif prim.IsA(UsdGeom.Capsule):
+        g = UsdGeom.Capsule(prim)
+        mesh = trimesh.creation.capsule(height=float(g.GetHeightAttr().Get(time)),
+                                        radius=float(g.GetRadiusAttr().Get(time)), count=[16, 16])
+        mesh.apply_translation(-mesh.bounds.mean(axis=0))
+        mesh.apply_transform(_axis_rotation(g.GetAxisAttr().Get(time)))
+        smooth = True
+    elif prim.IsA(UsdGeom.Plane):
+        g = UsdGeom.Plane(prim)
+        w, ln = float(g.GetWidthAttr().Get(time)) / 2, float(g.GetLengthAttr().Get(time)) / 2
+        pts = np.array([[-w, -ln, 0], [w, -ln, 0], [w, ln, 0], [-w, ln, 0]], np.float64)
+        tris = np.array([[0, 1, 2], [0, 2, 3]], np.int32)
+        axis = g.GetAxisAttr().Get(time)
+        pts = (pts @ _axis_rotation(axis)[:3, :3].T)
+        return pts, tris, False
+    else:
+        return None
+    return np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int32), smooth
