@@ -7,6 +7,8 @@ shutter, visibility over time, shading) -> AOVs -> result.
 from __future__ import annotations
 
 import math
+import os
+import sys
 import time
 from dataclasses import dataclass, field
 
@@ -15,6 +17,7 @@ import warp as wp
 
 from . import log
 from .frame import FrameContext
+from .errors import SettingsError
 from .methods import get_method
 from .scene import Scene
 from .settings import RenderSettings
@@ -41,18 +44,41 @@ class RenderResult:
     metadata: dict = field(default_factory=dict)
 
 
+_warp_ready = False
+
+
+def init_warp(device: str) -> None:
+    """Initialise Warp once. The native CUDA probe's stderr notice is silenced (so a user error
+    stays one line); a requested device that does not exist here is a user error."""
+    global _warp_ready
+    if not _warp_ready:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        try:
+            with open(os.devnull, "w") as null:
+                os.dup2(null.fileno(), 2)
+                wp.init()
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        _warp_ready = True
+    names = {str(d) for d in wp.get_devices()} | {str(d).split(":")[0] for d in wp.get_devices()}
+    if device not in names:
+        raise SettingsError(f"device '{device}' is not available here (available: {', '.join(sorted(names))})")
+
+
 class Renderer:
     """A stage opened once and rendered at many frames with the same settings."""
 
     def __init__(self, scene_path: str, *, camera: str | None = None,
                  resolution: tuple[int, int] | None = None, settings: RenderSettings | None = None) -> None:
-        wp.init()
         self.settings = settings or RenderSettings()
         self.scene_path = scene_path
         self.stage = open_stage(scene_path)
         self.camera = choose_camera(self.stage, camera)
         self.resolution = choose_resolution(self.stage, resolution)
         self.conform = conform_policy(self.stage)
+        init_warp(self.settings.device)
 
     def default_frame(self) -> float:
         return float(self.stage.GetStartTimeCode()) if self.stage.HasAuthoredTimeCodeRange() else 1.0

@@ -38,7 +38,7 @@ def entry_pixel_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np
     pts = np.concatenate([positions[entry_k0[:, None], vi], positions[entry_k1[:, None], vi]], axis=1)
     depth = -pts[..., 2].astype(np.float64)                             # (E, 6)
     keep = ~((depth > proj.far).all(axis=1) | (depth < proj.near).all(axis=1))
-    crosses = (depth < proj.near).any(axis=1) & ~proj.orthographic
+    crosses = (depth < proj.near).any(axis=1) & (not proj.orthographic)
     with np.errstate(divide="ignore", invalid="ignore"):
         r = proj.project(pts)
     lo = np.nanmin(r, axis=1) - margin

@@ -79,13 +79,22 @@ def write_exr(path: str, result, compression: str = "zip", extra_header: dict | 
     _atomic(path, write)
 
 
-def write_png(path: str, rgba: np.ndarray) -> None:
-    """8-bit sRGB preview of linear RGBA (alpha kept)."""
-    c = np.clip(rgba, 0.0, 1.0)
-    rgb = np.where(c[..., :3] <= 0.0031308, 12.92 * c[..., :3], 1.055 * np.power(c[..., :3], 1 / 2.4) - 0.055)
-    out = np.concatenate([rgb, c[..., 3:4]], axis=-1)
-    img = Image.fromarray((out * 255.0 + 0.5).astype(np.uint8), "RGBA")
-    _atomic(path, lambda tmp: img.save(tmp, format="PNG"))
+def srgb_preview(rgba: np.ndarray) -> Image.Image:
+    """Opaque 8-bit sRGB image of linear RGB: RGB already holds the background (dome or black),
+    so the preview shows what the frame looks like; coverage stays in the EXR's alpha."""
+    c = np.clip(rgba[..., :3], 0.0, 1.0)
+    rgb = np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
+    return Image.fromarray((rgb * 255.0 + 0.5).astype(np.uint8), "RGB")
+
+
+def write_png(path: str, rgba: np.ndarray, text: dict[str, str] | None = None) -> None:
+    """8-bit sRGB preview of a linear RGBA frame, with optional text chunks (atomic)."""
+    from PIL import PngImagePlugin
+    img = srgb_preview(rgba)
+    info = PngImagePlugin.PngInfo()
+    for k, v in (text or {}).items():
+        info.add_text(k, v)
+    _atomic(path, lambda tmp: img.save(tmp, format="PNG", pnginfo=info))
 
 
 def write_image(path: str, result, compression: str = "zip") -> None:
@@ -115,3 +124,22 @@ def read_exr(path: str) -> dict[str, np.ndarray]:
         chans["RGBA"] = np.stack([chans["R"], chans["G"], chans["B"], np.ones_like(chans["R"])], axis=-1)
     chans["__header__"] = header
     return chans
+
+
+def write_exr_channels(path: str, channels: dict[str, np.ndarray], header: dict | None = None) -> None:
+    """Write arbitrary float channels (e.g. a difference image) atomically."""
+    hdr = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, **(header or {})}
+
+    def write(tmp: str) -> None:
+        with OpenEXR.File(hdr, {k: np.ascontiguousarray(v, np.float32) for k, v in channels.items()}) as f:
+            f.write(tmp)
+
+    _atomic(path, write)
+
+
+def output_fingerprint_write(path: str, result, compression: str, fingerprint: str) -> None:
+    """Write a frame carrying its settings fingerprint (EXR header / PNG text chunk) for --resume."""
+    if os.path.splitext(path)[1].lower() == ".exr":
+        write_exr(path, result, compression, {"warp_blur.fingerprint": fingerprint})
+    else:
+        write_png(path, result.rgba, {"warp_blur.fingerprint": fingerprint})

@@ -174,13 +174,21 @@ def parse_resolution(text: str) -> tuple[int, int]:
     return w, h
 
 
+_NUM = r"[-+]?(?:\d+(?:\.\d*)?|\.\d+)"
+_FRAME_SPEC = re.compile(rf"{_NUM}(?::{_NUM}(?:x{_NUM})?)?")
+
+
 def parse_frames(spec: str) -> list[float]:
-    """usdrecord frame specs: '1:24', '1:24x2', '1,5,9' (parsed by USD's own TimeCodeRange)."""
+    """usdrecord frame specs: '1:24', '1:24x2', '1,5,9' (parsed by USD's own TimeCodeRange).
+
+    Each part is checked against the grammar first: USD's parser crashes on some malformed
+    specs (e.g. '1:') instead of raising.
+    """
     frames: list[float] = []
     for part in spec.split(","):
         part = part.strip()
-        if not part:
-            raise UserError(f"bad frame spec '{spec}'")
+        if not _FRAME_SPEC.fullmatch(part):
+            raise UserError(f"bad frame spec '{spec}': expected e.g. 1:24, 1:24x2 or 1,5,9")
         try:
             rng = UsdUtils.TimeCodeRange.CreateFromFrameSpec(part)
         except Tf.ErrorException:

@@ -1,0 +1,48 @@
+"""Small stages built by tests (written to tmp paths with the stages/ authoring helpers)."""
+
+from __future__ import annotations
+
+from authoring import add_camera, add_dome, add_distant_light, add_material, add_mesh, add_quad, new_stage
+
+
+def emissive_quad_stage(path: str, translate_samples=None, translate=(0, 0, 0), shutter=(-0.5, 0.5),
+                        half=1.0, emissive=(0.9, 0.4, 0.2), dome=(0.1, 0.12, 0.2), with_light=False,
+                        rotate_axis=None, rotate_samples=None, camera=None) -> str:
+    stage = new_stage(path)
+    add_camera(stage, shutter=shutter, **(camera or {}))
+    if dome is not None:
+        add_dome(stage, dome)
+    if with_light:
+        add_distant_light(stage, "/World/Sun", intensity=5.0)
+    mat = add_material(stage, "/World/Looks/Emit", emissive=emissive)
+    add_quad(stage, "/World/Quad", half, half, material=mat,
+             translate=None if translate_samples else translate, translate_samples=translate_samples,
+             rotate_axis=rotate_axis, rotate_samples=rotate_samples)
+    stage.GetRootLayer().Save()
+    return path
+
+
+def two_quads_stage(path: str) -> str:
+    """A near quad moving right in front of a far quad moving left (the occluder case)."""
+    stage = new_stage(path)
+    add_camera(stage)
+    add_dome(stage)
+    a = add_material(stage, "/World/Looks/A", emissive=(0.2, 0.4, 1.0))
+    b = add_material(stage, "/World/Looks/B", emissive=(1.0, 0.9, 0.2))
+    add_quad(stage, "/World/Far", 2.0, 1.5, material=a, translate_samples={0.5: (2, 0, -3), 1.5: (-1, 0, -3)})
+    add_quad(stage, "/World/Near", 0.6, 0.6, material=b, translate_samples={0.5: (-2.5, 0.2, 2), 1.5: (1.5, 0.2, 2)})
+    stage.GetRootLayer().Save()
+    return path
+
+
+def lit_stage(path: str, shutter=(-0.25, 0.25)) -> str:
+    """A grey lit quad under a distant light, static, and a moving lit triangle."""
+    stage = new_stage(path)
+    add_camera(stage, shutter=shutter)
+    add_distant_light(stage, "/World/Sun", intensity=2.0, rotate=(-30, 20, 0))
+    grey = add_material(stage, "/World/Looks/Grey", diffuse=(0.5, 0.5, 0.5), roughness=0.5, specular=(0.04,) * 3)
+    add_quad(stage, "/World/Back", 3.0, 2.0, material=grey, translate=(0, 0, -2))
+    add_mesh(stage, "/World/Tri", [(-0.8, -0.6, 0), (0.9, -0.4, 0), (0.1, 0.9, 0)], [3], [0, 1, 2],
+             material=grey, translate_samples={0.5: (-1.5, 0.0, 0.0), 1.5: (1.5, 0.3, 0.0)})
+    stage.GetRootLayer().Save()
+    return path

@@ -1,0 +1,129 @@
+"""USD -> NumPy: positions agree with UsdGeom's own transforms; instancers, gprims, purpose,
+visibility, upAxis Z and large coordinates are read as authored."""
+
+import numpy as np
+import pytest
+from pxr import Gf, Usd, UsdGeom, Vt
+
+from warp_blur.errors import InvalidGeometryError
+from warp_blur.scene import Scene
+from warp_blur.stage import Shutter, choose_camera, open_stage
+
+
+def _scene(path, frame=1.0, shutter=(0.5, 1.5), **kw):
+    stage = open_stage(path)
+    cam = choose_camera(stage, None)
+    return stage, cam, Scene(stage, cam, frame, Shutter(*shutter), **kw)
+
+
+def test_positions_agree_with_usdgeom(scene_path):
+    from authoring import add_camera, add_mesh, new_stage
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage, translate_samples={0: (0, 1, 10), 2: (1, 0, 8)}, rotate_axis="Y", rotate_samples={0: -10, 2: 20})
+    parent = UsdGeom.Xform.Define(stage, "/World/Parent")
+    parent.AddRotateZOp().Set(30.0, 0.0)
+    parent.GetPrim().GetAttribute("xformOp:rotateZ").Set(90.0, 2.0)
+    add_mesh(stage, "/World/Parent/Tri", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [3], [0, 1, 2],
+             translate_samples={0: (0, 0, 0), 2: (2, 1, -1)}, rotate_axis="X", rotate_samples={0: 0, 2: 45})
+    stage.GetRootLayer().Save()
+    stage, cam, scene = _scene(path)
+    for t in (0.5, 0.8, 1.3):
+        snap = scene.snapshot(t)
+        prim = stage.GetPrimAtPath("/World/Parent/Tri")
+        l2w = UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t)
+        c2w = UsdGeom.Xformable(cam.GetPrim()).ComputeLocalToWorldTransform(t)
+        w2c = c2w.GetInverse()
+        pts = UsdGeom.Mesh(prim).GetPointsAttr().Get(t)
+        expect = np.array([list(w2c.Transform(l2w.Transform(Gf.Vec3d(p)))) for p in pts])
+        np.testing.assert_allclose(snap.positions, expect, atol=1e-9)
+
+
+def test_point_instancer_instances(scene_path):
+    from authoring import add_camera, new_stage
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    inst = UsdGeom.PointInstancer.Define(stage, "/World/Inst")
+    cube = UsdGeom.Cube.Define(stage, "/World/Inst/Protos/Cube")
+    cube.CreateSizeAttr(0.5)
+    inst.CreatePrototypesRel().SetTargets([cube.GetPath()])
+    inst.CreateProtoIndicesAttr(Vt.IntArray([0, 0, 0]))
+    # velocities apply to time-sampled positions (USD ignores them for a default value)
+    inst.CreatePositionsAttr().Set(Vt.Vec3fArray([Gf.Vec3f(-2, 0, 0), Gf.Vec3f(0, 0, 0), Gf.Vec3f(2, 0, 0)]), 1.0)
+    inst.CreateVelocitiesAttr().Set(Vt.Vec3fArray([Gf.Vec3f(24, 0, 0)] * 3), 1.0)  # 1 unit/frame at 24 tcps
+    stage.GetRootLayer().Save()
+    stage, cam, scene = _scene(path)
+    assert scene.num_triangles == 3 * 12
+    a, b = scene.snapshot(1.0), scene.snapshot(1.5)
+    # velocities: positions move 0.5 units in x over half a frame (USD's own ComputeInstanceTransformsAtTime)
+    np.testing.assert_allclose(b.positions - a.positions, np.tile([0.5, 0, 0], (len(a.positions), 1)), atol=1e-6)
+    xs = a.positions[:, 0].reshape(3, -1).mean(axis=1)
+    np.testing.assert_allclose(xs, [-2, 0, 2], atol=1e-6)
+
+
+def test_gprims_purpose_and_visibility(scene_path):
+    from authoring import add_camera, new_stage
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    UsdGeom.Sphere.Define(stage, "/World/S")
+    UsdGeom.Cylinder.Define(stage, "/World/C")
+    UsdGeom.Cone.Define(stage, "/World/K")
+    UsdGeom.Capsule.Define(stage, "/World/P")
+    UsdGeom.Plane.Define(stage, "/World/L")
+    proxy = UsdGeom.Cube.Define(stage, "/World/Proxy")
+    proxy.CreatePurposeAttr(UsdGeom.Tokens.proxy)
+    hidden = UsdGeom.Cube.Define(stage, "/World/Blink")
+    hidden.CreateVisibilityAttr().Set(UsdGeom.Tokens.invisible, 1.25)
+    hidden.GetVisibilityAttr().Set(UsdGeom.Tokens.inherited, 0.0)
+    UsdGeom.BasisCurves.Define(stage, "/World/Curves")
+    stage.GetRootLayer().Save()
+    stage, cam, scene = _scene(path)
+    paths = [u.path for u in scene.units]
+    assert paths == ["/World/S", "/World/C", "/World/K", "/World/P", "/World/L", "/World/Blink"]
+    blink = scene.tri_unit == paths.index("/World/Blink")
+    assert scene.snapshot(1.0).tri_visible[blink].all()
+    assert not scene.snapshot(1.3).tri_visible[blink].any()
+    # the sphere's tessellation lies on the radius-1 sphere
+    s = scene.snapshot(1.0).positions[: scene.units[0].num_points] - np.array([0, 0, -10.0])
+    np.testing.assert_allclose(np.linalg.norm(s, axis=1), 1.0, atol=1e-6)
+
+
+def test_invalid_geometry_is_named_or_skipped(scene_path):
+    from authoring import add_camera, add_mesh, new_stage
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    add_mesh(stage, "/World/Bad", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [3], [0, 1, 7])
+    add_mesh(stage, "/World/NaN", [(0, 0, 0), (float("nan"), 0, 0), (0, 1, 0)], [3], [0, 1, 2])
+    add_mesh(stage, "/World/Good", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [3], [0, 1, 2])
+    stage.GetRootLayer().Save()
+    with pytest.raises(InvalidGeometryError, match="/World/Bad"):
+        _scene(path)
+    _, _, scene = _scene(path, skip_invalid=True)
+    assert [u.path for u in scene.units] == ["/World/Good"]
+
+
+def test_up_axis_z_and_units_render_as_authored(scene_path):
+    from authoring import add_camera, add_mesh, new_stage
+    path = scene_path()
+    stage = new_stage(path, up="Z", meters_per_unit=0.01)
+    add_camera(stage, translate=(0, 0, 1000), clipping=(1, 10000))
+    add_mesh(stage, "/World/T", [(0, 0, 0), (100, 0, 0), (0, 100, 0)], [3], [0, 1, 2])
+    stage.GetRootLayer().Save()
+    _, _, scene = _scene(path)
+    np.testing.assert_allclose(scene.snapshot(1.0).positions, [[0, 0, -1000], [100, 0, -1000], [0, 100, -1000]], atol=1e-9)
+
+
+def test_large_world_coordinates_stay_precise(scene_path):
+    from authoring import add_camera, add_mesh, new_stage
+    path = scene_path()
+    stage = new_stage(path)
+    off = 1.0e6
+    add_camera(stage, translate=(off, off, off + 10))
+    add_mesh(stage, "/World/T", [(0, 0, 0), (1e-3, 0, 0), (0, 1e-3, 0)], [3], [0, 1, 2], translate=(off, off, off))
+    stage.GetRootLayer().Save()
+    _, _, scene = _scene(path)
+    p = scene.snapshot(1.0).positions.astype(np.float32)  # what kernels see
+    np.testing.assert_allclose(p, [[0, 0, -10], [1e-3, 0, -10], [0, 1e-3, -10]], atol=1e-6)
