@@ -1,0 +1,43 @@
+"""Benchmark helpers: warm-up, medians of repeats, tables, output folder."""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import time
+from typing import Callable
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+OUT = os.path.join(ROOT, "bench", "out")
+SCENES = os.path.join(ROOT, "usd_scenes")
+
+
+def timed_median(fn: Callable[[], object], repeats: int = 3) -> tuple[float, object]:
+    """Median wall time of `repeats` calls after one warm-up call; returns (seconds, last result)."""
+    result = fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        result = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), result
+
+
+def table(rows: list[dict], columns: list[str]) -> str:
+    """Plain-text table of rows (dicts) with the given columns."""
+    def fmt(v):
+        return f"{v:.4g}" if isinstance(v, float) else str(v)
+    widths = [max(len(c), *(len(fmt(r.get(c, ""))) for r in rows)) for c in columns]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(columns, widths)),
+             "  ".join("-" * w for w in widths)]
+    lines += ["  ".join(fmt(r.get(c, "")).ljust(w) for c, w in zip(columns, widths)) for r in rows]
+    return "\n".join(lines)
+
+
+def save(name: str, data) -> str:
+    os.makedirs(OUT, exist_ok=True)
+    path = os.path.join(OUT, name)
+    with open(path, "w") as f:
+        json.dump(data, f, indent=2, default=str)
+    return path
