@@ -72,6 +72,11 @@ class FrameContext:
     def view(self, bins: TileBins | None):
         return make_view(self.proj, self.settings.spatial_samples, bins, TILE_SIZE)
 
+    def sub_pixel_offsets(self) -> list[tuple[float, float]]:
+        """n×n stratified sub-pixel positions (pixel centre when n = 1), SPEC §1."""
+        n = self.settings.spatial_samples
+        return [((i + 0.5) / n, (j + 0.5) / n) for j in range(n) for i in range(n)]
+
     def static_geometry(self, snapshots: list[Snapshot], knot: int) -> tuple[Geometry, TileBins]:
         """Geometry with all snapshots as knots, and static entries at `knot` for visible triangles."""
         positions = np.stack([s.positions for s in snapshots])
@@ -88,7 +93,7 @@ class FrameContext:
         view, b = self.view(bins), make_bins(bins, self.device)
         with self.timed("render"):
             launch_pixels(render_sharp, self.num_pixels,
-                          lambda first: [view, geo, sh, b, 0.0, weight, first, rgba],
+                          lambda first, _n: [view, geo, sh, b, 0.0, weight, first, rgba],
                           self.device, self.settings.threads)
 
     def depth_motion(self, snapshots: list[Snapshot] | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -101,7 +106,7 @@ class FrameContext:
         motion = wp.zeros(self.num_pixels, dtype=wp.vec2, device=self.device)
         with self.timed("aovs"):
             launch_pixels(render_depth_motion, self.num_pixels,
-                          lambda first: [view, geo, b, 0.5, 0, 2, first, depth, motion],
+                          lambda first, _n: [view, geo, b, 0.5, 0, 2, first, depth, motion],
                           self.device, self.settings.threads)
         h, w = self.proj.height, self.proj.width
         return depth.numpy().reshape(h, w), motion.numpy().reshape(h, w, 2)

@@ -23,24 +23,23 @@ def _pool(n: int) -> ThreadPoolExecutor:
     return _pools[n]
 
 
-def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int], list], device: str,
-                  threads: int | None = None, bands_per_thread: int = 4) -> None:
-    """Launch `kernel` over `num_pixels` pixels; inputs(first_pixel) gives the launch inputs.
-
-    On CPU the range is cut into bands (several per thread, for balance) launched in parallel;
-    on CUDA it is one launch.
-    """
+def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], device: str,
+                  threads: int | None = None, start: int = 0, bands_per_thread: int = 4) -> None:
+    """Launch `kernel` over pixels [start, start + num_pixels); inputs(first, count) gives a
+    band's launch inputs. On CPU the range is cut into bands (several per thread, for balance)
+    launched in parallel; on CUDA it is one launch."""
     if num_pixels <= 0:
         return
     threads = threads or default_threads()
     if device != "cpu" or threads == 1:
-        wp.launch(kernel, dim=num_pixels, inputs=inputs(0), device=device)
+        wp.launch(kernel, dim=num_pixels, inputs=inputs(start, num_pixels), device=device)
         return
     wp.load_module(kernel.module, device=device)
     num_bands = min(num_pixels, threads * bands_per_thread)
     size = (num_pixels + num_bands - 1) // num_bands
 
-    def run(start: int) -> None:
-        wp.launch(kernel, dim=min(size, num_pixels - start), inputs=inputs(start), device=device)
+    def run(first: int) -> None:
+        count = min(size, start + num_pixels - first)
+        wp.launch(kernel, dim=count, inputs=inputs(first, count), device=device)
 
-    list(_pool(threads).map(run, range(0, num_pixels, size)))
+    list(_pool(threads).map(run, range(start, start + num_pixels, size)))

@@ -1,0 +1,352 @@
+"""Per-pixel coverage intervals of moving triangles, exactly (count pass and fill pass).
+
+An entry's vertices move linearly in camera space over its span, so each edge function at a
+pixel ray, e(s) = d · ((a(s)-o) × (b(s)-o)), is a quadratic in the entry's time s ∈ [0, 1]. Its
+roots split the span into pieces of constant sign; a piece is covered where all three edge
+functions share a sign (either orientation: back faces and orientation flips are allowed, and a
+rotating triangle may cover a pixel in several disjoint pieces).
+
+Each covered piece is then:
+- clipped to the near/far planes: where the entry's vertex depths straddle a plane, the view
+  depth is sampled at 9 points and crossings are found by bisection (a *sampled fallback*,
+  counted in the stats as `near_far_fallbacks`);
+- split where view depth is far from linear (checked at the midpoint) and into shading pieces
+  (one for emissive-only materials or static lighting, else up to `max_shade` by length), each
+  stored as an interval (u0, u1, z0, z1, radiance at its middle).
+Both passes run the same function, so the fill writes exactly as many intervals as were counted.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from ...kernel_types import Bins, Geometry, Shading, View
+from ...raster import pixel_tile
+from ...rays import edge_owns, intersect_triangle, pixel_ray_direction, pixel_ray_origin
+from ...shading import shade_entry_hit
+
+MAX_PIECES = 16
+CLIP_SAMPLES = 8
+
+
+@wp.func
+def edge_coeffs(d: wp.vec3, a0: wp.vec3, da: wp.vec3, b0: wp.vec3, db: wp.vec3) -> wp.vec3:
+    """(c0, c1, c2) of e(s) = c0 + c1 s + c2 s² for the edge from a(s) = a0 + s da to b(s)."""
+    return wp.vec3(wp.dot(d, wp.cross(a0, b0)), wp.dot(d, wp.cross(a0, db) + wp.cross(da, b0)),
+                   wp.dot(d, wp.cross(da, db)))
+
+
+@wp.func
+def eval_quad(c: wp.vec3, s: float) -> float:
+    return c[0] + s * (c[1] + s * c[2])
+
+
+@wp.func
+def quad_roots(c: wp.vec3) -> wp.vec2:
+    """Roots of c0 + c1 s + c2 s² inside (0, 1), in any order; 2.0 marks a missing root.
+
+    Uses the cancellation-free form q = -(c1 + sign(c1) sqrt(disc)) / 2, roots q/c2 and c0/q."""
+    r0 = float(2.0)
+    r1 = float(2.0)
+    c0 = c[0]
+    c1 = c[1]
+    c2 = c[2]
+    if c2 == 0.0:
+        if c1 != 0.0:
+            r0 = -c0 / c1
+    else:
+        disc = c1 * c1 - 4.0 * c2 * c0
+        if disc >= 0.0:
+            sq = wp.sqrt(disc)
+            sgn = float(1.0)
+            if c1 < 0.0:
+                sgn = -1.0
+            q = -0.5 * (c1 + sgn * sq)
+            r0 = q / c2
+            if q != 0.0:
+                r1 = c0 / q
+    if not (r0 > 0.0 and r0 < 1.0):
+        r0 = 2.0
+    if not (r1 > 0.0 and r1 < 1.0):
+        r1 = 2.0
+    return wp.vec2(r0, r1)
+
+
+@wp.func
+def edge_sides(coef: wp.vec3, s: float, a: wp.vec3, b: wp.vec3, d: wp.vec3) -> wp.vec2:
+    """(positive side ok, negative side ok) of an edge at time s, as 1/0.
+
+    An edge function that is zero up to rounding (e.g. a pixel on an edge whose plane contains
+    the eye's whole path, as in a dolly) is a tie, settled by the same ownership rule as the sharp
+    test, so two triangles sharing the edge cover the pixel exactly once."""
+    val = eval_quad(coef, s)
+    ref = wp.length(d) * wp.length(a) * wp.length(b)
+    c = wp.cross(a, b)
+    pos = float(0.0)
+    neg = float(0.0)
+    if wp.abs(val) <= 1.0e-6 * ref:
+        if edge_owns(c):
+            pos = 1.0
+        if edge_owns(-c):
+            neg = 1.0
+    elif val > 0.0:
+        pos = 1.0
+    else:
+        neg = 1.0
+    return wp.vec2(pos, neg)
+
+
+@wp.func
+def plane_depth(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> float:
+    """View depth where the ray meets the triangle's plane (inf when parallel)."""
+    n = wp.cross(b - a, c - a)
+    den = wp.dot(d, n)
+    if den == 0.0:
+        return wp.inf
+    return wp.dot(a - o, n) / den
+
+
+@wp.func
+def plane_hit(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.vec4:
+    """(1, depth, w_b, w_c) of the ray and the triangle's plane, without the inside test."""
+    ao = a - o
+    bo = b - o
+    co = c - o
+    e_ab = wp.dot(d, wp.cross(ao, bo))
+    e_bc = wp.dot(d, wp.cross(bo, co))
+    e_ca = wp.dot(d, wp.cross(co, ao))
+    s = e_ab + e_bc + e_ca
+    if s == 0.0:
+        return wp.vec4(0.0, 0.0, 0.0, 0.0)
+    wa = e_bc / s
+    wb = e_ca / s
+    wc = e_ab / s
+    p = wa * a + wb * b + wc * c
+    return wp.vec4(1.0, -p[2], wb, wc)
+
+
+@wp.struct
+class Moving:
+    """An entry's triangle at both ends of its span (camera space)."""
+
+    a0: wp.vec3
+    b0: wp.vec3
+    c0: wp.vec3
+    a1: wp.vec3
+    b1: wp.vec3
+    c1: wp.vec3
+    u0: float
+    u1: float
+
+
+@wp.func
+def depth_at(m: Moving, o: wp.vec3, d: wp.vec3, s: float) -> float:
+    return plane_depth(o, d, m.a0 + s * (m.a1 - m.a0), m.b0 + s * (m.b1 - m.b0), m.c0 + s * (m.c1 - m.c0))
+
+
+@wp.func
+def in_range(view: View, z: float) -> bool:
+    return z >= view.near and z <= view.far
+
+
+@wp.func
+def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
+                s_a: float, s_b: float, n_shade_max: int, constant_radiance: int, write: int, base: int,
+                iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3)) -> int:
+    """Store [s_a, s_b] (already known covered and within the clipping range) as intervals."""
+    z_a = depth_at(m, o, d, s_a)
+    z_b = depth_at(m, o, d, s_b)
+    z_m = depth_at(m, o, d, 0.5 * (s_a + s_b))
+    tol = 1.0e-3 * wp.max(wp.abs(z_a), wp.abs(z_b))
+    err = wp.abs(z_m - 0.5 * (z_a + z_b))
+    n = int(1)
+    if err > tol and tol > 0.0:
+        n = wp.min(int(wp.ceil(wp.sqrt(err / tol))), MAX_PIECES)
+    if constant_radiance == 0:
+        ns = int(wp.ceil(float(n_shade_max) * (s_b - s_a) * (m.u1 - m.u0)))
+        n = wp.max(n, wp.clamp(ns, 1, n_shade_max))
+    if write != 0:
+        du = m.u1 - m.u0
+        z_prev = z_a
+        for i in range(n):
+            s0 = s_a + (s_b - s_a) * float(i) / float(n)
+            s1 = s_a + (s_b - s_a) * float(i + 1) / float(n)
+            z1 = z_b
+            if i + 1 < n:
+                z1 = depth_at(m, o, d, s1)
+            sm = 0.5 * (s0 + s1)
+            a = m.a0 + sm * (m.a1 - m.a0)
+            b = m.b0 + sm * (m.b1 - m.b0)
+            c = m.c0 + sm * (m.c1 - m.c0)
+            hit = plane_hit(o, d, a, b, c)
+            rgb = shade_entry_hit(view, geo, sh, e, sm, m.u0 + sm * du, o, d, hit)
+            iv_t[base + i] = wp.vec2(m.u0 + s0 * du, m.u0 + s1 * du)
+            iv_z[base + i] = wp.vec2(z_prev, z1)
+            iv_rgb[base + i] = rgb
+            z_prev = z1
+    return n
+
+
+@wp.func
+def emit_clipped(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
+                 s_a: float, s_b: float, may_clip: int, n_shade_max: int, constant_radiance: int, write: int,
+                 base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
+                 iv_rgb: wp.array(dtype=wp.vec3), fallbacks: wp.array(dtype=int)) -> int:
+    """Emit the part of a covered piece inside the clipping range (sampled when it may cross)."""
+    if may_clip == 0:
+        return emit_pieces(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, constant_radiance, write, base,
+                           iv_t, iv_z, iv_rgb)
+    if write == 0:
+        wp.atomic_add(fallbacks, 0, 1)
+    count = int(0)
+    prev_s = s_a
+    prev_in = in_range(view, depth_at(m, o, d, s_a))
+    start = s_a
+    for i in range(1, CLIP_SAMPLES + 1):
+        s = s_a + (s_b - s_a) * float(i) / float(CLIP_SAMPLES)
+        now_in = in_range(view, depth_at(m, o, d, s))
+        if now_in != prev_in:
+            lo = prev_s
+            hi = s
+            for _k in range(24):
+                mid = 0.5 * (lo + hi)
+                if in_range(view, depth_at(m, o, d, mid)) == prev_in:
+                    lo = mid
+                else:
+                    hi = mid
+            if prev_in:
+                # leaving the range: keep [start, lo] (the inside end of the bracket)
+                if lo > start:
+                    count += emit_pieces(view, geo, sh, e, m, o, d, start, lo, n_shade_max, constant_radiance,
+                                         write, base + count, iv_t, iv_z, iv_rgb)
+            else:
+                start = hi
+        prev_in = now_in
+        prev_s = s
+    if prev_in and s_b > start:
+        count += emit_pieces(view, geo, sh, e, m, o, d, start, s_b, n_shade_max, constant_radiance, write,
+                             base + count, iv_t, iv_z, iv_rgb)
+    return count
+
+
+@wp.func
+def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, n_shade_max: int,
+                    lights_static: int, write: int, base: int, iv_t: wp.array(dtype=wp.vec2),
+                    iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3),
+                    fallbacks: wp.array(dtype=int)) -> int:
+    """Count (write=0) or store (write=1, at base) the coverage intervals of entry e at a pixel ray."""
+    tri = geo.entry_tri[e]
+    vi = geo.tri_vertices[tri]
+    k0 = geo.entry_k0[e]
+    k1 = geo.entry_k1[e]
+    mat = geo.tri_material[tri]
+    emissive_only = int(0)
+    if sh.materials[mat, 10] < 0.5:
+        if wp.length(wp.vec3(sh.materials[mat, 0], sh.materials[mat, 1], sh.materials[mat, 2])) == 0.0:
+            if wp.length(wp.vec3(sh.materials[mat, 6], sh.materials[mat, 7], sh.materials[mat, 8])) == 0.0:
+                emissive_only = 1
+    m = Moving()
+    m.a0 = geo.positions[k0, vi[0]]
+    m.b0 = geo.positions[k0, vi[1]]
+    m.c0 = geo.positions[k0, vi[2]]
+    m.a1 = geo.positions[k1, vi[0]]
+    m.b1 = geo.positions[k1, vi[1]]
+    m.c1 = geo.positions[k1, vi[2]]
+    if k0 == k1:
+        # static entry: covered for the whole shutter or never
+        hit = intersect_triangle(o, d, m.a0, m.b0, m.c0)
+        if hit[0] == 0.0 or not in_range(view, hit[1]):
+            return 0
+        m.u0 = 0.0
+        m.u1 = 1.0
+        constant = emissive_only
+        if lights_static != 0:
+            constant = 1
+        return emit_pieces(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max, constant, write, base, iv_t, iv_z, iv_rgb)
+    m.u0 = float(k0) / float(geo.num_segments)
+    m.u1 = float(k1) / float(geo.num_segments)
+    ca = edge_coeffs(d, m.a0 - o, m.a1 - m.a0, m.b0 - o, m.b1 - m.b0)
+    cb = edge_coeffs(d, m.b0 - o, m.b1 - m.b0, m.c0 - o, m.c1 - m.c0)
+    cc = edge_coeffs(d, m.c0 - o, m.c1 - m.c0, m.a0 - o, m.a1 - m.a0)
+    ra = quad_roots(ca)
+    rb = quad_roots(cb)
+    rc = quad_roots(cc)
+    # may the view depth leave [near, far]? (the hit is a convex combination of the vertices)
+    zmin = wp.min(wp.min(wp.min(-m.a0[2], -m.b0[2]), wp.min(-m.c0[2], -m.a1[2])), wp.min(-m.b1[2], -m.c1[2]))
+    zmax = wp.max(wp.max(wp.max(-m.a0[2], -m.b0[2]), wp.max(-m.c0[2], -m.a1[2])), wp.max(-m.b1[2], -m.c1[2]))
+    may_clip = int(0)
+    if zmin < view.near or zmax > view.far:
+        may_clip = 1
+    count = int(0)
+    s_prev = float(0.0)
+    for _step in range(7):
+        if s_prev < 1.0:
+            s_next = float(1.0)
+            if ra[0] > s_prev and ra[0] < s_next:
+                s_next = ra[0]
+            if ra[1] > s_prev and ra[1] < s_next:
+                s_next = ra[1]
+            if rb[0] > s_prev and rb[0] < s_next:
+                s_next = rb[0]
+            if rb[1] > s_prev and rb[1] < s_next:
+                s_next = rb[1]
+            if rc[0] > s_prev and rc[0] < s_next:
+                s_next = rc[0]
+            if rc[1] > s_prev and rc[1] < s_next:
+                s_next = rc[1]
+            sm = 0.5 * (s_prev + s_next)
+            pa = m.a0 + sm * (m.a1 - m.a0) - o
+            pb = m.b0 + sm * (m.b1 - m.b0) - o
+            pc = m.c0 + sm * (m.c1 - m.c0) - o
+            e1 = edge_sides(ca, sm, pa, pb, d)
+            e2 = edge_sides(cb, sm, pb, pc, d)
+            e3 = edge_sides(cc, sm, pc, pa, d)
+            if (e1[0] * e2[0] * e3[0] > 0.0) or (e1[1] * e2[1] * e3[1] > 0.0):
+                count += emit_clipped(view, geo, sh, e, m, o, d, s_prev, s_next, may_clip, n_shade_max,
+                                      emissive_only, write, base + count, iv_t, iv_z, iv_rgb, fallbacks)
+            s_prev = s_next
+    return count
+
+
+@wp.func
+def sample_ray(view: View, px: int, py: int, sub: wp.vec2):
+    x = float(px) + sub[0]
+    y = float(py) + sub[1]
+    return pixel_ray_origin(view, x, y), pixel_ray_direction(view, x, y)
+
+
+@wp.kernel(enable_backward=False)
+def count_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, sub: wp.vec2, n_shade_max: int,
+                    lights_static: int, first_pixel: int,
+                    # outputs
+                    counts: wp.array(dtype=int), fallbacks: wp.array(dtype=int),
+                    iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3)):
+    """counts[pix] = number of intervals at the pixel's sample (iv_* are not written)."""
+    pix = first_pixel + wp.tid()
+    px = pix % view.width
+    py = pix // view.width
+    o, d = sample_ray(view, px, py, sub)
+    tile = pixel_tile(view, px, py)
+    n = int(0)
+    for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
+        n += entry_intervals(view, geo, sh, bins.tile_entries[i], o, d, n_shade_max, lights_static, 0, 0,
+                             iv_t, iv_z, iv_rgb, fallbacks)
+    counts[pix] = n
+
+
+@wp.kernel(enable_backward=False)
+def fill_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, sub: wp.vec2, n_shade_max: int,
+                   lights_static: int, first_pixel: int, offsets: wp.array(dtype=int), chunk_base: int,
+                   # outputs
+                   fallbacks: wp.array(dtype=int), iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
+                   iv_rgb: wp.array(dtype=wp.vec3)):
+    """Store each pixel's intervals at offsets[pix] - chunk_base in the chunk's arrays."""
+    pix = first_pixel + wp.tid()
+    px = pix % view.width
+    py = pix // view.width
+    o, d = sample_ray(view, px, py, sub)
+    tile = pixel_tile(view, px, py)
+    base = offsets[pix] - chunk_base
+    for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
+        base += entry_intervals(view, geo, sh, bins.tile_entries[i], o, d, n_shade_max, lights_static, 1, base,
+                                iv_t, iv_z, iv_rgb, fallbacks)
