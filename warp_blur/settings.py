@@ -45,6 +45,8 @@ class RenderSettings:
         aovs: AOV names to compute ("Z", "motion", "coverage").
         skip_invalid: drop prims with invalid geometry (with a warning) instead of failing.
         segment_error_px: max screen error of linearised motion segments, pixels.
+        segment_time_error: max linearisation error relative to a vertex's screen path (≈ the
+            error in the time an edge covers a pixel, as a share of the shutter).
         max_segments: upper bound of motion segments per prim (power of two).
         memory_budget_mb: analytic interval arrays above this render in pixel bands.
         device: Warp device ("cpu" or "cuda").
@@ -61,6 +63,7 @@ class RenderSettings:
     aovs: tuple[str, ...] = ("Z", "motion")
     skip_invalid: bool = False
     segment_error_px: float = 0.25
+    segment_time_error: float = 0.01
     max_segments: int = 16
     memory_budget_mb: float = 2048.0
     device: str = "cpu"
@@ -121,7 +124,8 @@ class RenderSettings:
         """Settings that decide pixels, as plain values (EXR header, --resume fingerprint)."""
         d = {"method": self.method, "samples": self.resolved_samples,
              "spatial_samples": self.spatial_samples, "shutter": self.shutter,
-             "segment_error_px": self.segment_error_px, "max_segments": self.max_segments}
+             "segment_error_px": self.segment_error_px, "segment_time_error": self.segment_time_error,
+             "max_segments": self.max_segments}
         if self.method == "analytic":
             d["time_bits"] = self.resolved_time_bits
         if self.method == "stochastic":

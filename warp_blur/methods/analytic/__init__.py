@@ -41,7 +41,8 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     n_shade = s.resolved_samples
     dev = ctx.device
     with ctx.timed("segments"):
-        plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.segment_error_px)
+        plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.segment_error_px,
+                           s.segment_time_error)
     geo = make_geometry(ctx.tables, plan.positions, plan.normals, plan.entry_tri, plan.entry_k0, plan.entry_k1)
     tile_bins = ctx.bin(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1)
     bins = make_bins(tile_bins, dev)

@@ -73,18 +73,28 @@ def quad_roots(c: wp.vec3) -> wp.vec2:
 
 
 @wp.func
-def edge_sides(coef: wp.vec3, s: float, a: wp.vec3, b: wp.vec3, d: wp.vec3) -> wp.vec2:
+def edge_degenerate(coef: wp.vec3, d: wp.vec3, a0: wp.vec3, da: wp.vec3, b0: wp.vec3, db: wp.vec3) -> int:
+    """1 when the edge function is zero up to float32 rounding over the whole span: the ray lies
+    in the plane of the edge and the eye at all times (e.g. a pixel on an edge whose plane holds
+    the camera's whole dolly path)."""
+    scale = wp.length(d) * (wp.length(a0) + wp.length(da)) * (wp.length(b0) + wp.length(db))
+    big = wp.max(wp.max(wp.abs(coef[0]), wp.abs(coef[1])), wp.abs(coef[2]))
+    if big <= 4.0e-7 * scale:
+        return 1
+    return 0
+
+
+@wp.func
+def edge_sides(coef: wp.vec3, degenerate: int, s: float, a: wp.vec3, b: wp.vec3) -> wp.vec2:
     """(positive side ok, negative side ok) of an edge at time s, as 1/0.
 
-    An edge function that is zero up to rounding (e.g. a pixel on an edge whose plane contains
-    the eye's whole path, as in a dolly) is a tie, settled by the same ownership rule as the sharp
-    test, so two triangles sharing the edge cover the pixel exactly once."""
+    A degenerate edge (see edge_degenerate) or an exact zero is a tie, settled by the same
+    ownership rule as the sharp test, so two triangles sharing the edge cover the pixel once."""
     val = eval_quad(coef, s)
-    ref = wp.length(d) * wp.length(a) * wp.length(b)
-    c = wp.cross(a, b)
     pos = float(0.0)
     neg = float(0.0)
-    if wp.abs(val) <= 1.0e-6 * ref:
+    if degenerate != 0 or val == 0.0:
+        c = wp.cross(a, b)
         if edge_owns(c):
             pos = 1.0
         if edge_owns(-c):
@@ -271,6 +281,9 @@ def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, 
     ra = quad_roots(ca)
     rb = quad_roots(cb)
     rc = quad_roots(cc)
+    dga = edge_degenerate(ca, d, m.a0 - o, m.a1 - m.a0, m.b0 - o, m.b1 - m.b0)
+    dgb = edge_degenerate(cb, d, m.b0 - o, m.b1 - m.b0, m.c0 - o, m.c1 - m.c0)
+    dgc = edge_degenerate(cc, d, m.c0 - o, m.c1 - m.c0, m.a0 - o, m.a1 - m.a0)
     # may the view depth leave [near, far]? (the hit is a convex combination of the vertices)
     zmin = wp.min(wp.min(wp.min(-m.a0[2], -m.b0[2]), wp.min(-m.c0[2], -m.a1[2])), wp.min(-m.b1[2], -m.c1[2]))
     zmax = wp.max(wp.max(wp.max(-m.a0[2], -m.b0[2]), wp.max(-m.c0[2], -m.a1[2])), wp.max(-m.b1[2], -m.c1[2]))
@@ -298,9 +311,9 @@ def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, 
             pa = m.a0 + sm * (m.a1 - m.a0) - o
             pb = m.b0 + sm * (m.b1 - m.b0) - o
             pc = m.c0 + sm * (m.c1 - m.c0) - o
-            e1 = edge_sides(ca, sm, pa, pb, d)
-            e2 = edge_sides(cb, sm, pb, pc, d)
-            e3 = edge_sides(cc, sm, pc, pa, d)
+            e1 = edge_sides(ca, dga, sm, pa, pb)
+            e2 = edge_sides(cb, dgb, sm, pb, pc)
+            e3 = edge_sides(cc, dgc, sm, pc, pa)
             if (e1[0] * e2[0] * e3[0] > 0.0) or (e1[1] * e2[1] * e3[1] > 0.0):
                 count += emit_clipped(view, geo, sh, e, m, o, d, s_prev, s_next, may_clip, n_shade_max,
                                       emissive_only, write, base + count, iv_t, iv_z, iv_rgb, fallbacks)

@@ -2,8 +2,11 @@
 
 Vertices follow USD's true paths (rotations are arcs). The shutter is sampled at M+1 fine knots
 (M = max_segments); each prim gets the fewest segments K (a power of two dividing M) such that no
-vertex is more than `error_px` pixels on screen from where USD puts it, at every fine knot, and at
-least motion:nonlinearSampleCount - 1 segments when its motion is not linear. A prim that does not
+vertex is more than `error_px` pixels on screen from where USD puts it, at every fine knot, nor
+more than `time_error` × its own screen path length (an edge that moves slowly on screen turns a
+small position error into a large error in the time it covers a pixel: this keeps coverage-time
+errors near `time_error`), and at least motion:nonlinearSampleCount - 1 segments when its motion
+is not linear. A prim that does not
 move (in camera space) gets one static entry and no prism work.
 """
 
@@ -41,18 +44,21 @@ class MotionPlan:
         return self.positions.shape[0] - 1
 
 
-def screen_error_px(proj: Projection, truth: np.ndarray, approx: np.ndarray) -> float:
-    """Largest screen distance (pixels) between true and approximated camera-space points.
+def screen_distance_px(proj: Projection, p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Screen distance (pixels) between camera-space points, elementwise over (..., 3).
 
     Points in front of the near plane are measured as if at the near plane (conservative)."""
+    if proj.orthographic:
+        return np.linalg.norm((p - q)[..., :2], axis=-1) * proj.pixels_per_unit
+    depth = np.maximum(np.minimum(-p[..., 2], -q[..., 2]), proj.near)
+    return np.linalg.norm(p - q, axis=-1) / depth * proj.pixels_per_unit
+
+
+def screen_error_px(proj: Projection, truth: np.ndarray, approx: np.ndarray) -> float:
+    """Largest screen distance (pixels) between true and approximated camera-space points."""
     if truth.size == 0:
         return 0.0
-    if proj.orthographic:
-        d = np.linalg.norm((truth - approx)[..., :2], axis=-1) * proj.pixels_per_unit
-        return float(d.max())
-    depth = np.maximum(np.minimum(-truth[..., 2], -approx[..., 2]), proj.near)
-    d = np.linalg.norm(truth - approx, axis=-1) / depth * proj.pixels_per_unit
-    return float(d.max())
+    return float(screen_distance_px(proj, truth, approx).max())
 
 
 def _hint(prim) -> int:
@@ -63,7 +69,7 @@ def _hint(prim) -> int:
 
 
 def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int = 16,
-                error_px: float = 0.25) -> MotionPlan:
+                error_px: float = 0.25, time_error: float = 0.01) -> MotionPlan:
     """Sample the shutter and choose segments per prim. shutter_time(u) -> USD time."""
     instant = shutter_time(0.0) == shutter_time(1.0)
     m = 1 if instant else max_segments
@@ -80,6 +86,8 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
             seg_of_unit.append(0)
             continue
         chosen, err = m, 0.0
+        path_px = screen_distance_px(proj, p[1:], p[:-1]).sum(axis=0)        # (N,) screen path length
+        allowed = np.maximum(np.minimum(error_px, time_error * path_px), 1e-3)
         k = 1
         while k <= m:
             stride = m // k
@@ -90,8 +98,9 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
             f = np.where(np.arange(m + 1) == m, 1.0, f)[:, None, None]
             lo = np.where(np.arange(m + 1)[:, None, None] == m, knots[k - 1], lo)
             approx = lo + f * (hi - lo)
-            err = screen_error_px(proj, p, approx)
-            if err <= error_px:
+            dev = screen_distance_px(proj, p, approx).max(axis=0)
+            err = float(dev.max()) if dev.size else 0.0
+            if (dev <= allowed).all():
                 chosen = k
                 break
             k *= 2
