@@ -46,3 +46,22 @@ def lit_stage(path: str, shutter=(-0.25, 0.25)) -> str:
              material=grey, translate_samples={0.5: (-1.5, 0.0, 0.0), 1.5: (1.5, 0.3, 0.0)})
     stage.GetRootLayer().Save()
     return path
+
+
+def moving_layers_stage(path: str, layers: int, cross: bool = False, size: float = 1.2) -> str:
+    """`layers` emissive quads stacked in depth over the same pixels, each moving; with cross=True
+    their depths reverse order during the shutter (every pair crosses in depth-time)."""
+    import colorsys
+    stage = new_stage(path)
+    add_camera(stage)
+    add_dome(stage)
+    for i in range(layers):
+        rgb = colorsys.hsv_to_rgb(i / layers, 0.8, 0.9)
+        mat = add_material(stage, f"/World/Looks/L{i}", emissive=rgb)
+        z0 = -0.02 * i
+        z1 = -0.02 * (layers - 1 - i) if cross else z0
+        dx = 0.3 * ((i % 5) - 2) / 2
+        add_quad(stage, f"/World/L{i}", size, size, material=mat,
+                 translate_samples={0.5: (-dx - 0.2, 0.05 * (i % 3), z0), 1.5: (dx + 0.2, -0.05 * (i % 3), z1)})
+    stage.GetRootLayer().Save()
+    return path

@@ -63,8 +63,8 @@ class RenderSettings:
     aovs: tuple[str, ...] = ("Z", "motion")
     skip_invalid: bool = False
     segment_error_px: float = 0.25
-    segment_time_error: float = 0.01
-    max_segments: int = 16
+    segment_time_error: float = 0.001
+    max_segments: int = 64
     memory_budget_mb: float = 2048.0
     device: str = "cpu"
     extra: dict = field(default_factory=dict)

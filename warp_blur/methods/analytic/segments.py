@@ -1,8 +1,8 @@
 """Motion segments: each prim's motion over the shutter as piecewise-linear camera-space paths.
 
-Vertices follow USD's true paths (rotations are arcs). The shutter is sampled at M+1 fine knots
-(M = max_segments); each prim gets the fewest segments K (a power of two dividing M) such that no
-vertex is more than `error_px` pixels on screen from where USD puts it, at every fine knot, nor
+Vertices follow USD's true paths (rotations are arcs). Each prim gets the fewest segments K (a
+power of two up to M = max_segments) such that no vertex is more than `error_px` pixels on screen
+from where USD puts it at the segments' midpoints (where a chord is farthest from an arc), nor
 more than `time_error` × its own screen path length (an edge that moves slowly on screen turns a
 small position error into a large error in the time it covers a pixel: this keeps coverage-time
 errors near `time_error`), and at least motion:nonlinearSampleCount - 1 segments when its motion
@@ -38,6 +38,7 @@ class MotionPlan:
     segments_per_prim: dict
     max_error_px: float
     lights_static: bool
+    snapshots: int = 0
 
     @property
     def num_segments(self) -> int:
@@ -68,57 +69,67 @@ def _hint(prim) -> int:
         return 3
 
 
-def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int = 16,
-                error_px: float = 0.25, time_error: float = 0.01) -> MotionPlan:
-    """Sample the shutter and choose segments per prim. shutter_time(u) -> USD time."""
+def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int = 64,
+                error_px: float = 0.25, time_error: float = 0.001) -> MotionPlan:
+    """Choose segments per prim by bisection of the shutter. shutter_time(u) -> USD time.
+
+    Snapshots are taken lazily: K segments are checked against the true positions at their
+    midpoints (the knots of 2K), so a frame costs 2·K_max + 1 snapshots (3 when all motion is
+    linear)."""
     instant = shutter_time(0.0) == shutter_time(1.0)
-    m = 1 if instant else max_segments
-    snaps = [scene.snapshot(shutter_time(k / m)) for k in range(m + 1)]
-    fine = np.stack([s.positions for s in snaps])                       # (M+1, V, 3)
-    lights_fine = np.stack([s.lights for s in snaps])
-    lights_static = bool(np.all(lights_fine == lights_fine[:1]))
-    seg_of_unit = []
-    max_err = 0.0
+    m = 2 if instant else max(max_segments, 2)
+    snaps: dict = {}
+
+    def snap(k: int):
+        if k not in snaps:
+            snaps[k] = scene.snapshot(shutter_time(k / m))
+        return snaps[k]
+
+    def pos(k: int, o: int, n: int) -> np.ndarray:
+        return snap(k).positions[o:o + n]
+
+    seg_of_unit = [0] * len(scene.units)
+    pending: dict[int, np.ndarray] = {}
     for ui, unit in enumerate(scene.units):
-        o = scene.unit_vertex_offsets[ui]
-        p = fine[:, o:o + unit.num_points * unit.num_instances]
-        if instant or np.array_equal(p, np.broadcast_to(p[:1], p.shape)):
-            seg_of_unit.append(0)
+        o, n = scene.unit_vertex_offsets[ui], unit.num_points * unit.num_instances
+        p0, pm, p1 = pos(0, o, n), pos(m // 2, o, n), pos(m, o, n)
+        if instant or (np.array_equal(p0, pm) and np.array_equal(p0, p1)):
             continue
-        chosen, err = m, 0.0
-        path_px = screen_distance_px(proj, p[1:], p[:-1]).sum(axis=0)        # (N,) screen path length
-        allowed = np.maximum(np.minimum(error_px, time_error * path_px), 1e-3)
-        k = 1
-        while k <= m:
-            stride = m // k
-            knots = p[::stride]
-            f = (np.arange(m + 1) % stride) / stride
-            lo = knots[np.minimum(np.arange(m + 1) // stride, k - 1)]
-            hi = knots[np.minimum(np.arange(m + 1) // stride + 1, k)]
-            f = np.where(np.arange(m + 1) == m, 1.0, f)[:, None, None]
-            lo = np.where(np.arange(m + 1)[:, None, None] == m, knots[k - 1], lo)
-            approx = lo + f * (hi - lo)
-            dev = screen_distance_px(proj, p, approx).max(axis=0)
-            err = float(dev.max()) if dev.size else 0.0
-            if (dev <= allowed).all():
+        path_px = screen_distance_px(proj, pm, p0) + screen_distance_px(proj, p1, pm)
+        pending[ui] = np.maximum(np.minimum(error_px, time_error * path_px), 1e-3)
+    max_err = 0.0
+    k = 1
+    while pending and 2 * k <= m:
+        stride = m // (2 * k)                      # knots of 2K: the midpoints of K segments
+        for ui in list(pending):
+            unit = scene.units[ui]
+            o, n = scene.unit_vertex_offsets[ui], unit.num_points * unit.num_instances
+            dev = np.zeros(n)
+            for j in range(k):
+                a, mid, b = 2 * j * stride, (2 * j + 1) * stride, (2 * j + 2) * stride
+                approx = 0.5 * (pos(a, o, n) + pos(b, o, n))
+                dev = np.maximum(dev, screen_distance_px(proj, pos(mid, o, n), approx))
+            if (dev <= pending[ui]).all():
                 chosen = k
-                break
-            k *= 2
-        if chosen > 1:  # not linear: honour the prim's nonlinear sample count hint
-            hint = _hint(unit.prim) - 1
-            while chosen < min(hint, m):
-                chosen *= 2
-        max_err = max(max_err, err)
-        seg_of_unit.append(chosen)
+                if chosen > 1:  # not linear: honour the prim's nonlinear sample count hint
+                    while chosen < min(_hint(unit.prim) - 1, m):
+                        chosen *= 2
+                seg_of_unit[ui] = chosen
+                max_err = max(max_err, float(dev.max()) if n else 0.0)
+                del pending[ui]
+        k *= 2
+    for ui in pending:  # not converged within max_segments: use them all (error reported)
+        seg_of_unit[ui] = m
     k_global = max(seg_of_unit + [1])
     stride = m // k_global
-    keep = np.arange(0, m + 1, stride)
-    positions = fine[keep]
-    normals = np.stack([snaps[i].normals for i in keep]) if scene.any_smooth else None
-    lights = lights_fine[keep]
+    keep = list(range(0, m + 1, stride))
+    positions = np.stack([snap(i).positions for i in keep])
+    normals = np.stack([snap(i).normals for i in keep]) if scene.any_smooth else None
+    lights = np.stack([snap(i).lights for i in keep])
+    lights_static = bool(all(np.array_equal(snaps[i].lights, snaps[0].lights) for i in snaps))
     tri_e, k0_e, k1_e = [], [], []
     tri_ids = np.arange(scene.num_triangles, dtype=np.int32)
-    vis = np.stack([snaps[i].tri_visible for i in keep]) if scene.num_triangles else np.zeros((len(keep), 0), bool)
+    vis = np.stack([snap(i).tri_visible for i in keep]) if scene.num_triangles else np.zeros((len(keep), 0), bool)
     for ui, k in enumerate(seg_of_unit):
         tris = tri_ids[scene.tri_unit == ui]
         if k == 0:
@@ -138,4 +149,4 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
     return MotionPlan(positions=positions, normals=normals, lights=lights, entry_tri=cat(tri_e),
                       entry_k0=cat(k0_e), entry_k1=cat(k1_e),
                       segments_per_prim={u.path: k for u, k in zip(scene.units, seg_of_unit)},
-                      max_error_px=max_err, lights_static=lights_static)
+                      max_error_px=max_err, lights_static=lights_static, snapshots=len(snaps))

@@ -1,0 +1,162 @@
+"""Analytic motion blur against oracles: a closed-form coverage profile, accumulation at 1024
+instants on hard cases, the sharp render for zero motion, exact vs 1024 bits, the acceptance refs."""
+
+import math
+import os
+
+import numpy as np
+import pytest
+from conftest import ACCEPTANCE
+from scenes import emissive_quad_stage, lit_stage, moving_layers_stage, two_quads_stage
+
+import warp_blur as wb
+from warp_blur.metrics import max_abs, rmse
+from warp_blur.output import read_exr
+
+RES = (64, 48)
+
+
+def _pair(path, frame=1, res=RES, n=1024, **analytic):
+    ref = wb.render(path, frame=frame, resolution=res, samples=n, aovs=())
+    out = wb.render(path, frame=frame, resolution=res, method="analytic", aovs=(), **analytic)
+    return out, ref
+
+
+def test_translating_quad_matches_closed_form_coverage(scene_path):
+    """Orthographic camera, quad moving at constant speed along x: a pixel centre at x is covered
+    for the time the quad's span [l + v u, r + v u] contains it."""
+    path = emissive_quad_stage(scene_path(), half=2.0, camera={"projection": "orthographic", "haperture": 160.0,
+                                                                "vaperture": 120.0},
+                               translate_samples={0.5: (-3.0, 0.0, 0.0), 1.5: (3.0, 0.0, 0.0)})
+    w, h = RES
+    xs = -8.0 + 16.0 * (np.arange(w) + 0.5) / w          # window is 16 x 12 units
+    lo, hi = -2.0 - 3.0, 2.0 - 3.0                       # quad span at shutter open; moves +6
+    t_in = np.clip((xs - hi) / 6.0, 0, 1)
+    t_out = np.clip((xs - lo) / 6.0, 0, 1)
+    expect = t_out - t_in
+    exact = wb.render(path, frame=1, resolution=RES, method="analytic", time_bits=0, aovs=())
+    row = exact.rgba[h // 2, :, 3]
+    np.testing.assert_allclose(row, expect, atol=2e-5)
+    bits = wb.render(path, frame=1, resolution=RES, method="analytic", time_bits=128, aovs=())
+    np.testing.assert_allclose(bits.rgba[h // 2, :, 3], expect, atol=1.0 / 128 + 1e-6)
+    assert exact.stats["motion_segments"]["/World/Quad"] == 1
+
+
+CASES = {
+    "translation": lambda p: emissive_quad_stage(p, translate_samples={0.5: (-2, 0.5, 0), 1.5: (2, -0.5, 0)}),
+    "depth_swap": lambda p: two_quads_stage(p),
+    "rotate_90_view_axis": lambda p: emissive_quad_stage(p, half=1.5, rotate_axis="Z", rotate_samples={0.5: -45, 1.5: 45}),
+    "rotate_180_view_axis": lambda p: emissive_quad_stage(p, half=1.5, rotate_axis="Z", rotate_samples={0.5: 0, 1.5: 180}),
+    "camera_pan": lambda p: emissive_quad_stage(p, camera={"translate_samples": {0.5: (-1.5, 0, 10), 1.5: (1.5, 0, 10)}}),
+    "camera_yaw": lambda p: emissive_quad_stage(p, camera={"translate": (0, 0, 10), "rotate_axis": "Y",
+                                                         "rotate_samples": {0.5: -12, 1.5: 12}}),
+    "lit_translation": lambda p: lit_stage(p),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_analytic_matches_accumulation_1024(scene_path, case):
+    path = CASES[case](scene_path(case))
+    out, ref = _pair(path, time_bits=0)
+    assert rmse(out.rgba, ref.rgba) <= 2e-3, case
+    assert max_abs(out.rgba, ref.rgba) <= 0.05, case
+
+
+def test_deforming_mesh(scene_path):
+    from authoring import add_camera, add_dome, add_material, add_mesh, grid, new_stage
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    add_dome(stage)
+    mat = add_material(stage, "/World/Looks/E", emissive=(0.9, 0.6, 0.3))
+
+    def wave(x, y, t):
+        return 0.8 * math.sin(1.3 * x + 2.0 * t)
+    samples = {t: [(x, y + 0.6 * math.sin(t + x), z) for x, y, z in grid(6, 4, 4.0, 3.0, wave, t)[0]] for t in (0, 0.5, 1, 1.5, 2)}
+    _, c, i = grid(6, 4, 4.0, 3.0)
+    add_mesh(stage, "/World/Cloth", None, c, i, material=mat, points_samples=samples)
+    stage.GetRootLayer().Save()
+    out, ref = _pair(path, time_bits=0)
+    assert rmse(out.rgba, ref.rgba) <= 2e-3
+    assert max_abs(out.rgba, ref.rgba) <= 0.05
+
+
+def test_quad_crossing_the_near_plane(scene_path):
+    path = emissive_quad_stage(scene_path(), half=1.0, camera={"translate": (0, 0, 10), "clipping": (1.0, 100.0)},
+                               translate_samples={0.5: (0.3, 0.2, 5.0), 1.5: (0.3, 0.2, 10.5)})
+    out, ref = _pair(path, time_bits=0)
+    assert out.stats["near_far_fallbacks"] > 0
+    assert rmse(out.rgba, ref.rgba) <= 3e-3
+    assert np.isfinite(out.rgba).all()
+
+
+def test_64_layers_crossing_in_depth_time(scene_path):
+    path = moving_layers_stage(scene_path(), 64, cross=True)
+    out, ref = _pair(path, res=(32, 24), time_bits=0)
+    assert out.stats["intervals_per_pixel_max"] >= 64
+    assert rmse(out.rgba, ref.rgba) <= 3e-3
+    bits = wb.render(path, frame=1, resolution=(32, 24), method="analytic", time_bits=256, aovs=())
+    assert rmse(bits.rgba, ref.rgba) <= 5e-3
+
+
+def test_sub_pixel_triangles(scene_path):
+    from authoring import add_camera, add_dome, add_material, add_mesh, new_stage
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    add_dome(stage)
+    mat = add_material(stage, "/World/Looks/E", emissive=(1.0, 0.8, 0.2))
+    rng = np.random.default_rng(3)
+    pts, idx = [], []
+    for k in range(300):
+        c = rng.uniform(-3, 3, 3) * (1, 0.75, 0.2)
+        tri = c + rng.normal(scale=0.02, size=(3, 3))
+        idx += [len(pts), len(pts) + 1, len(pts) + 2]
+        pts += tri.tolist()
+    add_mesh(stage, "/World/Dust", pts, [3] * 300, idx, material=mat,
+             translate_samples={0.5: (-0.6, 0, 0), 1.5: (0.6, 0.2, 0)})
+    stage.GetRootLayer().Save()
+    out, ref = _pair(path, time_bits=0)
+    assert rmse(out.rgba, ref.rgba) <= 2e-3
+
+
+@pytest.mark.parametrize("shutter", [(0.0, 0.0), None])
+def test_zero_motion_and_instant_shutter_equal_the_sharp_render(scene_path, shutter):
+    moving = shutter is not None
+    path = lit_stage(scene_path()) if moving else emissive_quad_stage(scene_path(), with_light=True)
+    sharp = wb.render(path, frame=1, resolution=RES, samples=1, shutter=(0.0, 0.0), aovs=())
+    out = wb.render(path, frame=1, resolution=RES, method="analytic", shutter=shutter, aovs=())
+    np.testing.assert_allclose(out.rgba, sharp.rgba, atol=1e-6)
+
+
+def test_1024_bits_agree_with_exact_mode(scene_path):
+    path = two_quads_stage(scene_path())
+    exact = wb.render(path, frame=1, resolution=RES, method="analytic", time_bits=0, aovs=())
+    bits = wb.render(path, frame=1, resolution=RES, method="analytic", time_bits=1024, aovs=())
+    assert rmse(bits.rgba, exact.rgba) <= 5e-4
+    assert max_abs(bits.rgba, exact.rgba) <= 2.0 / 1024 * 2
+
+
+def test_memory_budget_renders_in_chunks_with_the_same_image(scene_path):
+    path = moving_layers_stage(scene_path(), 8)
+    whole = wb.render(path, frame=1, resolution=(32, 24), method="analytic", aovs=())
+    chunked = wb.render(path, frame=1, resolution=(32, 24), method="analytic", aovs=(), memory_budget_mb=0.002)
+    assert chunked.stats["interval_chunks"] > 1
+    np.testing.assert_array_equal(whole.rgba, chunked.rgba)
+
+
+def test_results_do_not_depend_on_threads(scene_path):
+    path = two_quads_stage(scene_path())
+    a = wb.render(path, frame=1, resolution=RES, method="analytic", aovs=(), threads=1)
+    b = wb.render(path, frame=1, resolution=RES, method="analytic", aovs=(), threads=3)
+    np.testing.assert_array_equal(a.rgba, b.rgba)
+
+
+@pytest.mark.parametrize("name,tol", [("diagonal", 0.002), ("spin_edge_on", 0.004), ("occluder_pass", 0.002),
+                                      ("dolly", 0.003)])
+def test_acceptance_reference(name, tol):
+    ref = read_exr(os.path.join(ACCEPTANCE, "refs", f"{name}.exr"))["RGBA"]
+    for bits in (128, 0):
+        r = wb.render(os.path.join(ACCEPTANCE, "scenes", f"{name}.usda"), frame=1, resolution=(128, 96),
+                      method="analytic", time_bits=bits, aovs=())
+        assert rmse(r.rgba, ref) <= tol, (name, bits)
