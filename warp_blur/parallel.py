@@ -24,19 +24,22 @@ def _pool(n: int) -> ThreadPoolExecutor:
 
 
 def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], device: str,
-                  threads: int | None = None, start: int = 0, bands_per_thread: int = 4) -> None:
+                  threads: int | None = None, start: int = 0, bands_per_thread: int = 4,
+                  max_band: int | None = None) -> None:
     """Launch `kernel` over pixels [start, start + num_pixels); inputs(first, count) gives a
     band's launch inputs. On CPU the range is cut into bands (several per thread, for balance)
     launched in parallel; on CUDA it is one launch."""
     if num_pixels <= 0:
         return
     threads = threads or default_threads()
-    if device != "cpu" or threads == 1:
+    if (device != "cpu" or threads == 1) and (max_band is None or num_pixels <= max_band):
         wp.launch(kernel, dim=num_pixels, inputs=inputs(start, num_pixels), device=device)
         return
     wp.load_module(kernel.module, device=device)
     num_bands = min(num_pixels, threads * bands_per_thread)
     size = (num_pixels + num_bands - 1) // num_bands
+    if max_band is not None:
+        size = max(1, min(size, max_band))
 
     def run(first: int) -> None:
         count = min(size, start + num_pixels - first)

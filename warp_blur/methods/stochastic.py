@@ -1,0 +1,192 @@
+"""Stochastic rasterization of time-continuous triangles (SPEC §5): N time samples per pixel,
+one per stratum [j/N, (j+1)/N), jittered per pixel from a seeded hash: deterministic.
+
+Triangles move as in the analytic method (the same motion segments). For each triangle binned to
+the pixel's tile, the time bounds when it can cover the pixel are found from its edge quadratics
+(first and last covered instants), and only the samples whose strata meet those bounds are
+tested; each sample keeps its nearest hit, then is shaded at its own instant.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ..device_data import make_bins, make_geometry, make_shading
+from ..frame import FrameContext
+from ..kernel_types import Bins, Geometry, Shading, View
+from ..parallel import launch_pixels
+from ..raster import pixel_tile
+from ..rays import entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin
+from ..shading import shade_entry_hit
+from .analytic.intervals import edge_coeffs, edge_degenerate, edge_sides, quad_roots
+from .analytic.segments import plan_motion
+
+SCRATCH_BYTES = 64 * 2**20
+
+
+@wp.func
+def covered_time_bounds(geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> wp.vec2:
+    """[first, last] shutter time at which moving entry e may cover the ray (empty: lo > hi)."""
+    vi = geo.tri_vertices[geo.entry_tri[e]]
+    k0 = geo.entry_k0[e]
+    k1 = geo.entry_k1[e]
+    a0 = geo.positions[k0, vi[0]] - o
+    b0 = geo.positions[k0, vi[1]] - o
+    c0 = geo.positions[k0, vi[2]] - o
+    da = geo.positions[k1, vi[0]] - geo.positions[k0, vi[0]]
+    db = geo.positions[k1, vi[1]] - geo.positions[k0, vi[1]]
+    dc = geo.positions[k1, vi[2]] - geo.positions[k0, vi[2]]
+    ca = edge_coeffs(d, a0, da, b0, db)
+    cb = edge_coeffs(d, b0, db, c0, dc)
+    cc = edge_coeffs(d, c0, dc, a0, da)
+    ra = quad_roots(ca)
+    rb = quad_roots(cb)
+    rc = quad_roots(cc)
+    dga = edge_degenerate(ca, d, a0, da, b0, db)
+    dgb = edge_degenerate(cb, d, b0, db, c0, dc)
+    dgc = edge_degenerate(cc, d, c0, dc, a0, da)
+    lo = float(2.0)
+    hi = float(-1.0)
+    s_prev = float(0.0)
+    for _step in range(7):
+        if s_prev < 1.0:
+            s_next = float(1.0)
+            if ra[0] > s_prev and ra[0] < s_next:
+                s_next = ra[0]
+            if ra[1] > s_prev and ra[1] < s_next:
+                s_next = ra[1]
+            if rb[0] > s_prev and rb[0] < s_next:
+                s_next = rb[0]
+            if rb[1] > s_prev and rb[1] < s_next:
+                s_next = rb[1]
+            if rc[0] > s_prev and rc[0] < s_next:
+                s_next = rc[0]
+            if rc[1] > s_prev and rc[1] < s_next:
+                s_next = rc[1]
+            sm = 0.5 * (s_prev + s_next)
+            pa = a0 + sm * da
+            pb = b0 + sm * db
+            pc = c0 + sm * dc
+            # bounds must be conservative: a degenerate edge allows both sides here, and the exact
+            # per-sample test decides (with the sharp test's tie rule)
+            e1 = edge_sides(ca, dga, sm, pa, pb)
+            e2 = edge_sides(cb, dgb, sm, pb, pc)
+            e3 = edge_sides(cc, dgc, sm, pc, pa)
+            if dga != 0:
+                e1 = wp.vec2(1.0, 1.0)
+            if dgb != 0:
+                e2 = wp.vec2(1.0, 1.0)
+            if dgc != 0:
+                e3 = wp.vec2(1.0, 1.0)
+            if (e1[0] * e2[0] * e3[0] > 0.0) or (e1[1] * e2[1] * e3[1] > 0.0):
+                lo = wp.min(lo, s_prev)
+                hi = wp.max(hi, s_next)
+            s_prev = s_next
+    u0 = float(k0) / float(geo.num_segments)
+    u1 = float(k1) / float(geo.num_segments)
+    return wp.vec2(u0 + lo * (u1 - u0), u0 + hi * (u1 - u0))
+
+
+@wp.kernel(enable_backward=False)
+def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, bins: Bins, sub: wp.vec2, n: int, seed: int,
+                             weight: float, first_pixel: int,
+                             # outputs (scratch rows are per band: row = tid)
+                             times: wp.array2d(dtype=float), best_z: wp.array2d(dtype=float),
+                             best_e: wp.array2d(dtype=int), rgba: wp.array2d(dtype=float)):
+    tid = wp.tid()
+    pix = first_pixel + tid
+    px = pix % view.width
+    py = pix // view.width
+    x = float(px) + sub[0]
+    y = float(py) + sub[1]
+    o = pixel_ray_origin(view, x, y)
+    d = pixel_ray_direction(view, x, y)
+    state = wp.rand_init(seed, pix)
+    for j in range(n):
+        times[tid, j] = (float(j) + wp.randf(state)) / float(n)
+        best_z[tid, j] = wp.inf
+        best_e[tid, j] = -1
+    tile = pixel_tile(view, px, py)
+    for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
+        e = bins.tile_entries[i]
+        vi = geo.tri_vertices[geo.entry_tri[e]]
+        k0 = geo.entry_k0[e]
+        k1 = geo.entry_k1[e]
+        if k0 == k1:
+            hit = intersect_triangle(o, d, geo.positions[k0, vi[0]], geo.positions[k0, vi[1]], geo.positions[k0, vi[2]])
+            if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
+                for j in range(n):
+                    if hit[1] < best_z[tid, j]:
+                        best_z[tid, j] = hit[1]
+                        best_e[tid, j] = e
+        else:
+            bounds = covered_time_bounds(geo, e, o, d)
+            if bounds[0] <= bounds[1]:
+                u0 = float(k0) / float(geo.num_segments)
+                u1 = float(k1) / float(geo.num_segments)
+                j0 = wp.clamp(int(wp.floor(bounds[0] * float(n))), 0, n - 1)
+                j1 = wp.clamp(int(wp.floor(bounds[1] * float(n))), 0, n - 1)
+                for j in range(j0, j1 + 1):
+                    u = times[tid, j]
+                    if u >= u0 and u <= u1:
+                        alpha = (u - u0) / (u1 - u0)
+                        hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
+                                                 entry_vertex(geo, e, vi[2], alpha))
+                        if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far and hit[1] < best_z[tid, j]:
+                            best_z[tid, j] = hit[1]
+                            best_e[tid, j] = e
+    color = wp.vec3(0.0, 0.0, 0.0)
+    cover = float(0.0)
+    for j in range(n):
+        e = best_e[tid, j]
+        if e >= 0:
+            u = times[tid, j]
+            vi = geo.tri_vertices[geo.entry_tri[e]]
+            alpha = float(0.0)
+            if geo.entry_k0[e] != geo.entry_k1[e]:
+                u0 = float(geo.entry_k0[e]) / float(geo.num_segments)
+                u1 = float(geo.entry_k1[e]) / float(geo.num_segments)
+                alpha = (u - u0) / (u1 - u0)
+            hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
+                                     entry_vertex(geo, e, vi[2], alpha))
+            color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
+            cover = cover + 1.0
+        else:
+            color = color + sh.dome
+    w = weight / float(n)
+    rgba[pix, 0] = rgba[pix, 0] + w * color[0]
+    rgba[pix, 1] = rgba[pix, 1] + w * color[1]
+    rgba[pix, 2] = rgba[pix, 2] + w * color[2]
+    rgba[pix, 3] = rgba[pix, 3] + w * cover
+
+
+def render_stochastic(ctx: FrameContext) -> np.ndarray:
+    s = ctx.settings
+    n = s.resolved_samples
+    dev = ctx.device
+    with ctx.timed("segments"):
+        plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.segment_error_px,
+                           s.segment_time_error)
+    geo = make_geometry(ctx.tables, plan.positions, plan.normals, plan.entry_tri, plan.entry_k0, plan.entry_k1)
+    tile_bins = ctx.bin(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1)
+    bins = make_bins(tile_bins, dev)
+    sh = make_shading(ctx.scene.material_table, plan.lights, ctx.scene.dome, dev)
+    view = ctx.view(tile_bins)
+    rgba = wp.zeros((ctx.num_pixels, 4), dtype=float, device=dev)
+    subs = ctx.sub_pixel_offsets()
+    max_band = max(1, SCRATCH_BYTES // (12 * n))
+    for si, sub in enumerate(subs):
+        sub_v = wp.vec2(*sub)
+        seed = (s.resolved_seed * 7919 + si * 104729) & 0x7FFFFFFF
+
+        def inputs(first: int, count: int) -> list:
+            return [view, geo, sh, bins, sub_v, n, seed, 1.0 / len(subs), first,
+                    wp.empty((count, n), dtype=float, device=dev), wp.empty((count, n), dtype=float, device=dev),
+                    wp.empty((count, n), dtype=int, device=dev), rgba]
+
+        with ctx.timed("render"):
+            launch_pixels(render_stochastic_kernel, ctx.num_pixels, inputs, dev, s.threads, max_band=max_band)
+    ctx.counters.update({"samples_per_pixel": n, "seed": s.resolved_seed,
+                         "motion_segments": plan.segments_per_prim, "entries": int(len(plan.entry_tri))})
+    return rgba.numpy()
