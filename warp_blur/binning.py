@@ -24,6 +24,7 @@ class TileBins:
     tile_entries: np.ndarray   # (pairs,) int32, ascending entry order within each tile
     tiles_x: int
     tiles_y: int
+    entry_boxes: np.ndarray | None = None   # (E, 4) float32 swept pixel boxes
 
     @property
     def num_pairs(self) -> int:
@@ -74,4 +75,4 @@ def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size
     entries = idx[rep[order]].astype(np.int32)
     per_tile = np.bincount(tile, minlength=tiles_x * tiles_y)
     offsets = np.concatenate([[0], np.cumsum(per_tile)]).astype(np.int32)
-    return TileBins(offsets, entries, tiles_x, tiles_y)
+    return TileBins(offsets, entries, tiles_x, tiles_y, np.asarray(boxes, np.float32))

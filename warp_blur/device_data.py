@@ -83,4 +83,6 @@ def make_bins(bins: TileBins, device: str) -> Bins:
     b = Bins()
     b.tile_offsets = _arr(bins.tile_offsets, int, device)
     b.tile_entries = _arr(bins.tile_entries, int, device)
+    boxes = bins.entry_boxes if bins.entry_boxes is not None else np.zeros((0, 4), np.float32)
+    b.entry_boxes = _arr(boxes.astype(np.float32), wp.vec4, device)
     return b

@@ -20,8 +20,16 @@ def pixel_tile(view: View, px: int, py: int) -> int:
 
 
 @wp.func
-def nearest_entry(view: View, geo: Geometry, bins: Bins, tile: int, o: wp.vec3, d: wp.vec3, u: float):
-    """Nearest entry hit by the ray at shutter time u within the clipping range.
+def box_rejects(bins: Bins, e: int, x: float, y: float) -> bool:
+    """True when the sample (x, y pixels) lies outside entry e's swept pixel box."""
+    b = bins.entry_boxes[e]
+    return x < b[0] or x > b[2] or y < b[1] or y > b[3]
+
+
+@wp.func
+def nearest_entry(view: View, geo: Geometry, bins: Bins, tile: int, sx: float, sy: float, o: wp.vec3, d: wp.vec3,
+                  u: float):
+    """Nearest entry hit by the ray of sample (sx, sy) at shutter time u within the clipping range.
 
     Returns (entry or -1, interpolation alpha, hit (1, depth, w_b, w_c)). Ties in depth go to the
     lower entry index, so the result is deterministic.
@@ -32,10 +40,10 @@ def nearest_entry(view: View, geo: Geometry, bins: Bins, tile: int, o: wp.vec3, 
     for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
         e = bins.tile_entries[i]
         alpha = entry_alpha(geo, e, u)
-        if alpha >= 0.0:
+        if alpha >= 0.0 and not box_rejects(bins, e, sx, sy):
             vi = geo.tri_vertices[geo.entry_tri[e]]
             hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
-                                     entry_vertex(geo, e, vi[2], alpha))
+                                     entry_vertex(geo, e, vi[2], alpha), vi)
             if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
                 if best_e < 0 or hit[1] < best[1]:
                     best_e = e
@@ -78,7 +86,7 @@ def render_sharp(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, w
             y = float(py) + (float(sy) + 0.5) / float(n)
             o = pixel_ray_origin(view, x, y)
             d = pixel_ray_direction(view, x, y)
-            e, alpha, hit = nearest_entry(view, geo, bins, tile, o, d, u)
+            e, alpha, hit = nearest_entry(view, geo, bins, tile, x, y, o, d, u)
             if e >= 0:
                 color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
                 cover = cover + 1.0
@@ -105,7 +113,7 @@ def render_depth_motion(view: View, geo: Geometry, bins: Bins, u: float, k_open:
     y = float(py) + 0.5
     o = pixel_ray_origin(view, x, y)
     d = pixel_ray_direction(view, x, y)
-    e, alpha, hit = nearest_entry(view, geo, bins, pixel_tile(view, px, py), o, d, u)
+    e, alpha, hit = nearest_entry(view, geo, bins, pixel_tile(view, px, py), x, y, o, d, u)
     if e < 0:
         depth[pix] = wp.inf
         motion[pix] = wp.vec2(0.0, 0.0)

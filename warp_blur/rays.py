@@ -46,17 +46,29 @@ def edge_owns(c: wp.vec3) -> bool:
 
 
 @wp.func
-def intersect_triangle(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.vec4:
-    """(hit 0/1, view depth, barycentric of b, barycentric of c) of the line o + t d and abc.
+def edge_cross(a: wp.vec3, b: wp.vec3, ia: int, ib: int) -> wp.vec3:
+    """a × b for an edge from vertex ia to ib (eye-relative positions), computed from the
+    lower-index vertex as base × (other − base): exactly antisymmetric between the two triangles
+    sharing the edge, and with rounding that scales with the edge's length rather than with the
+    distance to the eye (small, distant triangles stay accurate in float32)."""
+    if ia < ib:
+        return wp.cross(a, b - a)
+    return -wp.cross(b, a - b)
+
+
+@wp.func
+def intersect_triangle(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3, vi: wp.vec3i) -> wp.vec4:
+    """(hit 0/1, view depth, barycentric of b, barycentric of c) of the line o + t d and abc,
+    whose vertex indices are vi (they fix each shared edge's canonical orientation).
 
     The caller checks depth against the near/far planes (which also rejects hits behind the eye).
     """
     ao = a - o
     bo = b - o
     co = c - o
-    c_ab = wp.cross(ao, bo)
-    c_bc = wp.cross(bo, co)
-    c_ca = wp.cross(co, ao)
+    c_ab = edge_cross(ao, bo, vi[0], vi[1])
+    c_bc = edge_cross(bo, co, vi[1], vi[2])
+    c_ca = edge_cross(co, ao, vi[2], vi[0])
     e_ab = wp.dot(d, c_ab)
     e_bc = wp.dot(d, c_bc)
     e_ca = wp.dot(d, c_ca)

@@ -16,8 +16,8 @@ from ..device_data import make_bins, make_geometry, make_shading
 from ..frame import FrameContext
 from ..kernel_types import Bins, Geometry, Shading, View
 from ..parallel import launch_pixels
-from ..raster import pixel_tile
-from ..rays import entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin
+from ..raster import box_rejects, pixel_tile
+from ..rays import edge_cross, entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin
 from ..shading import shade_entry_hit
 from .analytic.intervals import edge_coeffs, edge_degenerate, edge_sides, quad_roots
 from .analytic.segments import plan_motion
@@ -37,9 +37,9 @@ def covered_time_bounds(geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> wp.vec
     da = geo.positions[k1, vi[0]] - geo.positions[k0, vi[0]]
     db = geo.positions[k1, vi[1]] - geo.positions[k0, vi[1]]
     dc = geo.positions[k1, vi[2]] - geo.positions[k0, vi[2]]
-    ca = edge_coeffs(d, a0, da, b0, db)
-    cb = edge_coeffs(d, b0, db, c0, dc)
-    cc = edge_coeffs(d, c0, dc, a0, da)
+    ca = edge_coeffs(d, a0, da, b0, db, vi[0], vi[1])
+    cb = edge_coeffs(d, b0, db, c0, dc, vi[1], vi[2])
+    cc = edge_coeffs(d, c0, dc, a0, da, vi[2], vi[0])
     ra = quad_roots(ca)
     rb = quad_roots(cb)
     rc = quad_roots(cc)
@@ -70,9 +70,9 @@ def covered_time_bounds(geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> wp.vec
             pc = c0 + sm * dc
             # bounds must be conservative: a degenerate edge allows both sides here, and the exact
             # per-sample test decides (with the sharp test's tie rule)
-            e1 = edge_sides(ca, dga, sm, pa, pb)
-            e2 = edge_sides(cb, dgb, sm, pb, pc)
-            e3 = edge_sides(cc, dgc, sm, pc, pa)
+            e1 = edge_sides(ca, dga, sm, edge_cross(pa, pb, vi[0], vi[1]))
+            e2 = edge_sides(cb, dgb, sm, edge_cross(pb, pc, vi[1], vi[2]))
+            e3 = edge_sides(cc, dgc, sm, edge_cross(pc, pa, vi[2], vi[0]))
             if dga != 0:
                 e1 = wp.vec2(1.0, 1.0)
             if dgb != 0:
@@ -113,8 +113,11 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, bins: Bins,
         vi = geo.tri_vertices[geo.entry_tri[e]]
         k0 = geo.entry_k0[e]
         k1 = geo.entry_k1[e]
+        if box_rejects(bins, e, x, y):
+            continue
         if k0 == k1:
-            hit = intersect_triangle(o, d, geo.positions[k0, vi[0]], geo.positions[k0, vi[1]], geo.positions[k0, vi[2]])
+            hit = intersect_triangle(o, d, geo.positions[k0, vi[0]], geo.positions[k0, vi[1]], geo.positions[k0, vi[2]],
+                                     vi)
             if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
                 for j in range(n):
                     if hit[1] < best_z[tid, j]:
@@ -132,7 +135,7 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, bins: Bins,
                     if u >= u0 and u <= u1:
                         alpha = (u - u0) / (u1 - u0)
                         hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
-                                                 entry_vertex(geo, e, vi[2], alpha))
+                                                 entry_vertex(geo, e, vi[2], alpha), vi)
                         if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far and hit[1] < best_z[tid, j]:
                             best_z[tid, j] = hit[1]
                             best_e[tid, j] = e
@@ -149,7 +152,7 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, bins: Bins,
                 u1 = float(geo.entry_k1[e]) / float(geo.num_segments)
                 alpha = (u - u0) / (u1 - u0)
             hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
-                                     entry_vertex(geo, e, vi[2], alpha))
+                                     entry_vertex(geo, e, vi[2], alpha), vi)
             color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
             cover = cover + 1.0
         else:

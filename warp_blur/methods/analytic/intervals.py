@@ -10,9 +10,10 @@ Each covered piece is then:
 - clipped to the near/far planes: where the entry's vertex depths straddle a plane, the view
   depth is sampled at 9 points and crossings are found by bisection (a *sampled fallback*,
   counted in the stats as `near_far_fallbacks`);
-- split where view depth is far from linear (checked at the midpoint) and into shading pieces
-  (one for emissive-only materials or static lighting, else up to `max_shade` by length), each
-  stored as an interval (u0, u1, z0, z1, radiance at its middle).
+- split where view depth is far from linear (checked at the midpoint) and into shading pieces:
+  one for emissive-only materials or a static triangle under static lights; otherwise the
+  radiance at the piece's ends and middle decides how many (steps of 1/256, up to the
+  `samples` cap), each stored as an interval (u0, u1, z0, z1, radiance at its middle).
 Both passes run the same function, so the fill writes exactly as many intervals as were counted.
 """
 
@@ -21,19 +22,35 @@ from __future__ import annotations
 import warp as wp
 
 from ...kernel_types import Bins, Geometry, Shading, View
-from ...raster import pixel_tile
-from ...rays import edge_owns, intersect_triangle, pixel_ray_direction, pixel_ray_origin
+from ...raster import box_rejects, pixel_tile
+from ...rays import edge_cross, edge_owns, intersect_triangle, pixel_ray_direction, pixel_ray_origin
 from ...shading import shade_entry_hit
 
 MAX_PIECES = 16
 CLIP_SAMPLES = 8
+SHADE_TOLERANCE = wp.constant(1.0 / 256.0)
 
 
 @wp.func
-def edge_coeffs(d: wp.vec3, a0: wp.vec3, da: wp.vec3, b0: wp.vec3, db: wp.vec3) -> wp.vec3:
-    """(c0, c1, c2) of e(s) = c0 + c1 s + c2 s² for the edge from a(s) = a0 + s da to b(s)."""
-    return wp.vec3(wp.dot(d, wp.cross(a0, b0)), wp.dot(d, wp.cross(a0, db) + wp.cross(da, b0)),
-                   wp.dot(d, wp.cross(da, db)))
+def edge_coeffs(d: wp.vec3, a0: wp.vec3, da: wp.vec3, b0: wp.vec3, db: wp.vec3, ia: int, ib: int) -> wp.vec3:
+    """(c0, c1, c2) of e(s) = c0 + c1 s + c2 s² for the edge from a(s) = a0 + s da to b(s)
+    (eye-relative), in the canonical form of `edge_cross`: base × (other − base) from the
+    lower-index vertex, exactly antisymmetric between the triangles sharing the edge."""
+    sign = float(1.0)
+    p0 = a0
+    dp = da
+    q0 = b0
+    dq = db
+    if ia > ib:
+        sign = -1.0
+        p0 = b0
+        dp = db
+        q0 = a0
+        dq = da
+    e0 = q0 - p0
+    de = dq - dp
+    return sign * wp.vec3(wp.dot(d, wp.cross(p0, e0)), wp.dot(d, wp.cross(p0, de) + wp.cross(dp, e0)),
+                          wp.dot(d, wp.cross(dp, de)))
 
 
 @wp.func
@@ -77,7 +94,7 @@ def edge_degenerate(coef: wp.vec3, d: wp.vec3, a0: wp.vec3, da: wp.vec3, b0: wp.
     """1 when the edge function is zero up to float32 rounding over the whole span: the ray lies
     in the plane of the edge and the eye at all times (e.g. a pixel on an edge whose plane holds
     the camera's whole dolly path)."""
-    scale = wp.length(d) * (wp.length(a0) + wp.length(da)) * (wp.length(b0) + wp.length(db))
+    scale = wp.length(d) * (wp.length(a0) + wp.length(da)) * (wp.length(b0 - a0) + wp.length(db - da))
     big = wp.max(wp.max(wp.abs(coef[0]), wp.abs(coef[1])), wp.abs(coef[2]))
     if big <= 4.0e-7 * scale:
         return 1
@@ -85,16 +102,16 @@ def edge_degenerate(coef: wp.vec3, d: wp.vec3, a0: wp.vec3, da: wp.vec3, b0: wp.
 
 
 @wp.func
-def edge_sides(coef: wp.vec3, degenerate: int, s: float, a: wp.vec3, b: wp.vec3) -> wp.vec2:
+def edge_sides(coef: wp.vec3, degenerate: int, s: float, c: wp.vec3) -> wp.vec2:
     """(positive side ok, negative side ok) of an edge at time s, as 1/0.
 
     A degenerate edge (see edge_degenerate) or an exact zero is a tie, settled by the same
-    ownership rule as the sharp test, so two triangles sharing the edge cover the pixel once."""
+    ownership rule as the sharp test on the edge's canonical cross vector c (`edge_cross`), so
+    two triangles sharing the edge cover the pixel once."""
     val = eval_quad(coef, s)
     pos = float(0.0)
     neg = float(0.0)
     if degenerate != 0 or val == 0.0:
-        c = wp.cross(a, b)
         if edge_owns(c):
             pos = 1.0
         if edge_owns(-c):
@@ -160,6 +177,20 @@ def in_range(view: View, z: float) -> bool:
 
 
 @wp.func
+def max_channel(v: wp.vec3) -> float:
+    return wp.max(wp.max(v[0], v[1]), v[2])
+
+
+@wp.func
+def shade_at(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s: float) -> wp.vec3:
+    """Radiance of entry e seen along the ray at entry time s."""
+    a = m.a0 + s * (m.a1 - m.a0)
+    b = m.b0 + s * (m.b1 - m.b0)
+    c = m.c0 + s * (m.c1 - m.c0)
+    return shade_entry_hit(view, geo, sh, e, s, m.u0 + s * (m.u1 - m.u0), o, d, plane_hit(o, d, a, b, c))
+
+
+@wp.func
 def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
                 s_a: float, s_b: float, n_shade_max: int, constant_radiance: int, write: int, base: int,
                 iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3)) -> int:
@@ -172,8 +203,14 @@ def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp
     n = int(1)
     if err > tol and tol > 0.0:
         n = wp.min(int(wp.ceil(wp.sqrt(err / tol))), MAX_PIECES)
-    if constant_radiance == 0:
-        ns = int(wp.ceil(float(n_shade_max) * (s_b - s_a) * (m.u1 - m.u0)))
+    if constant_radiance == 0 and n_shade_max > 1:
+        # as many shading pieces as the radiance change along the piece needs (1/256 steps)
+        la = shade_at(view, geo, sh, e, m, o, d, s_a)
+        lm = shade_at(view, geo, sh, e, m, o, d, 0.5 * (s_a + s_b))
+        lb = shade_at(view, geo, sh, e, m, o, d, s_b)
+        dev = wp.max(max_channel(wp.abs(la - lm)), max_channel(wp.abs(lm - lb)))
+        dev = wp.max(dev, max_channel(wp.abs(lm - 0.5 * (la + lb))) * 4.0)
+        ns = int(wp.ceil(dev / SHADE_TOLERANCE))
         n = wp.max(n, wp.clamp(ns, 1, n_shade_max))
     if write != 0:
         du = m.u1 - m.u0
@@ -264,7 +301,7 @@ def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, 
     m.c1 = geo.positions[k1, vi[2]]
     if k0 == k1:
         # static entry: covered for the whole shutter or never
-        hit = intersect_triangle(o, d, m.a0, m.b0, m.c0)
+        hit = intersect_triangle(o, d, m.a0, m.b0, m.c0, vi)
         if hit[0] == 0.0 or not in_range(view, hit[1]):
             return 0
         m.u0 = 0.0
@@ -275,9 +312,9 @@ def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, 
         return emit_pieces(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max, constant, write, base, iv_t, iv_z, iv_rgb)
     m.u0 = float(k0) / float(geo.num_segments)
     m.u1 = float(k1) / float(geo.num_segments)
-    ca = edge_coeffs(d, m.a0 - o, m.a1 - m.a0, m.b0 - o, m.b1 - m.b0)
-    cb = edge_coeffs(d, m.b0 - o, m.b1 - m.b0, m.c0 - o, m.c1 - m.c0)
-    cc = edge_coeffs(d, m.c0 - o, m.c1 - m.c0, m.a0 - o, m.a1 - m.a0)
+    ca = edge_coeffs(d, m.a0 - o, m.a1 - m.a0, m.b0 - o, m.b1 - m.b0, vi[0], vi[1])
+    cb = edge_coeffs(d, m.b0 - o, m.b1 - m.b0, m.c0 - o, m.c1 - m.c0, vi[1], vi[2])
+    cc = edge_coeffs(d, m.c0 - o, m.c1 - m.c0, m.a0 - o, m.a1 - m.a0, vi[2], vi[0])
     ra = quad_roots(ca)
     rb = quad_roots(cb)
     rc = quad_roots(cc)
@@ -311,9 +348,9 @@ def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, 
             pa = m.a0 + sm * (m.a1 - m.a0) - o
             pb = m.b0 + sm * (m.b1 - m.b0) - o
             pc = m.c0 + sm * (m.c1 - m.c0) - o
-            e1 = edge_sides(ca, dga, sm, pa, pb)
-            e2 = edge_sides(cb, dgb, sm, pb, pc)
-            e3 = edge_sides(cc, dgc, sm, pc, pa)
+            e1 = edge_sides(ca, dga, sm, edge_cross(pa, pb, vi[0], vi[1]))
+            e2 = edge_sides(cb, dgb, sm, edge_cross(pb, pc, vi[1], vi[2]))
+            e3 = edge_sides(cc, dgc, sm, edge_cross(pc, pa, vi[2], vi[0]))
             if (e1[0] * e2[0] * e3[0] > 0.0) or (e1[1] * e2[1] * e3[1] > 0.0):
                 count += emit_clipped(view, geo, sh, e, m, o, d, s_prev, s_next, may_clip, n_shade_max,
                                       emissive_only, write, base + count, iv_t, iv_z, iv_rgb, fallbacks)
@@ -341,9 +378,13 @@ def count_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, sub: wp.
     o, d = sample_ray(view, px, py, sub)
     tile = pixel_tile(view, px, py)
     n = int(0)
+    sx = float(px) + sub[0]
+    sy = float(py) + sub[1]
     for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
-        n += entry_intervals(view, geo, sh, bins.tile_entries[i], o, d, n_shade_max, lights_static, 0, 0,
-                             iv_t, iv_z, iv_rgb, fallbacks)
+        e = bins.tile_entries[i]
+        if not box_rejects(bins, e, sx, sy):
+            n += entry_intervals(view, geo, sh, e, o, d, n_shade_max, lights_static, 0, 0, iv_t, iv_z, iv_rgb,
+                                 fallbacks)
     counts[pix] = n
 
 
@@ -360,6 +401,10 @@ def fill_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, sub: wp.v
     o, d = sample_ray(view, px, py, sub)
     tile = pixel_tile(view, px, py)
     base = offsets[pix] - chunk_base
+    sx = float(px) + sub[0]
+    sy = float(py) + sub[1]
     for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
-        base += entry_intervals(view, geo, sh, bins.tile_entries[i], o, d, n_shade_max, lights_static, 1, base,
-                                iv_t, iv_z, iv_rgb, fallbacks)
+        e = bins.tile_entries[i]
+        if not box_rejects(bins, e, sx, sy):
+            base += entry_intervals(view, geo, sh, e, o, d, n_shade_max, lights_static, 1, base, iv_t, iv_z,
+                                    iv_rgb, fallbacks)
