@@ -1,0 +1,151 @@
+"""The speed-vs-accuracy trade: every method across its quality knob on the bench scenes, timed
+(median of repeats after a warm-up) and scored against an accumulation reference, in one run.
+
+    python bench/bench_tradeoff.py            # full: 4096-instant references (1024 for large)
+    python bench/bench_tradeoff.py --quick    # minutes: smaller images, fewer points
+Writes bench/out/tradeoff.{csv,json,png} and prints the time each method needs to reach a given
+error, and analytic's speed-up over each other method at equal error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import os
+import sys
+
+import numpy as np
+from tqdm import tqdm
+
+sys.path.insert(0, os.path.dirname(__file__))
+from common import OUT, SCENES, table, timed_median  # noqa: E402
+from references import reference  # noqa: E402
+
+import warp_blur as wb  # noqa: E402
+from warp_blur.metrics import max_abs, psnr, rmse  # noqa: E402
+
+SCENE_LIST = [  # name, frame, full resolution, reference instants
+    ("demo", 12, (640, 480), 4096),
+    ("near_plane", 2, (640, 480), 4096),
+    ("crossing", 2, (640, 480), 4096),
+    ("rotation", 2, (640, 480), 4096),
+    ("large", 2, (1024, 768), 1024),
+]
+
+
+def sweeps(quick: bool) -> dict[str, list[dict]]:
+    acc = [4, 16, 64, 256] if quick else [4, 16, 64, 256, 1024]
+    sto = [4, 16, 64] if quick else [4, 16, 64, 256]
+    ana = [(32, 2), (128, 4), (128, 16), (0, 16)] if quick else [(32, 2), (64, 4), (128, 4), (128, 16), (512, 16), (0, 16)]
+    out = {
+        "accumulation": [{"samples": n} for n in acc],
+        "stochastic": [{"samples": n} for n in sto],
+        "analytic": [{"time_bits": b, "samples": s} for b, s in ana],
+    }
+    if "velocity" in wb.METHODS:
+        try:
+            from warp_blur.methods import get_method
+            get_method("velocity")
+            out["velocity"] = [{"samples": n} for n in ([4, 8, 16] if quick else [4, 8, 16, 32])]
+        except (ImportError, KeyError):
+            pass
+    return out
+
+
+def time_to_error(points: list[tuple[float, float]], target: float) -> float:
+    """Time a method needs for error <= target, interpolated log-log along its (time, error)
+    curve sorted by time; inf when no point reaches it."""
+    pts = sorted(points)
+    best = math.inf
+    for (t0, e0), (t1, e1) in zip(pts, pts[1:]):
+        if e0 > target >= e1 and e1 > 0:
+            f = (math.log(target) - math.log(e0)) / (math.log(e1) - math.log(e0))
+            best = min(best, math.exp(math.log(t0) + f * (math.log(t1) - math.log(t0))))
+    for t, e in pts:
+        if e <= target:
+            best = min(best, t)
+    return best
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--scenes", default=",".join(s[0] for s in SCENE_LIST))
+    ap.add_argument("--repeats", type=int)
+    args = ap.parse_args()
+    repeats = args.repeats or (1 if args.quick else 3)
+    chosen = [s for s in SCENE_LIST if s[0] in args.scenes.split(",")]
+    plan = sweeps(args.quick)
+    rows: list[dict] = []
+    jobs = [(s, m, k) for s in chosen for m, ks in plan.items() for k in ks]
+    bar = tqdm(total=len(jobs) + len(chosen), desc="tradeoff", unit="run")
+    for name, frame, res, ref_n in chosen:
+        if args.quick:
+            res, ref_n = (res[0] // 2, res[1] // 2), min(ref_n, 1024)
+        path = os.path.join(SCENES, f"{name}.usda")
+        bar.set_postfix_str(f"{name} reference ({ref_n})")
+        ref = reference(path, frame, res, ref_n)
+        bar.update(1)
+        for method, knobs in plan.items():
+            for knob in knobs:
+                bar.set_postfix_str(f"{name} {method} {knob}")
+                renderer = wb.Renderer(path, resolution=res,
+                                       settings=wb.RenderSettings(method=method, aovs=(), **knob))
+                seconds, result = timed_median(lambda: renderer.render(frame), repeats)
+                rows.append({"scene": name, "method": method, "knob": json.dumps(knob), "seconds": seconds,
+                             "rmse": rmse(result.rgba, ref), "psnr": psnr(result.rgba, ref),
+                             "max_abs": max_abs(result.rgba, ref),
+                             "intervals_per_pixel": result.stats.get("intervals_per_pixel_mean", "")})
+                bar.update(1)
+    bar.close()
+    os.makedirs(OUT, exist_ok=True)
+    with open(os.path.join(OUT, "tradeoff.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    summary = []
+    for name, *_ in chosen:
+        sr = [r for r in rows if r["scene"] == name]
+        curves = {m: [(r["seconds"], r["rmse"]) for r in sr if r["method"] == m] for m in plan}
+        default_analytic = next(r for r in sr if r["method"] == "analytic" and json.loads(r["knob"]) == {"time_bits": 128, "samples": 16})
+        for target in (default_analytic["rmse"], 2e-3, 1e-3):
+            entry = {"scene": name, "target_rmse": target}
+            for m, pts in curves.items():
+                entry[f"t_{m}"] = time_to_error(pts, target)
+            for m in plan:
+                if m != "analytic":
+                    entry[f"analytic_speedup_vs_{m}"] = entry[f"t_{m}"] / entry["t_analytic"] if entry["t_analytic"] < math.inf else math.nan
+            summary.append(entry)
+    with open(os.path.join(OUT, "tradeoff.json"), "w") as f:
+        json.dump({"runs": rows, "time_to_error": summary, "quick": args.quick}, f, indent=2, default=str)
+    print(table(rows, ["scene", "method", "knob", "seconds", "rmse", "max_abs", "intervals_per_pixel"]))
+    print()
+    cols = ["scene", "target_rmse"] + [f"t_{m}" for m in plan] + [f"analytic_speedup_vs_{m}" for m in plan if m != "analytic"]
+    print(table(summary, cols))
+    _plot(rows, chosen, plan, os.path.join(OUT, "tradeoff.png"))
+    print("wrote", os.path.join(OUT, "tradeoff.csv"), "tradeoff.json", "tradeoff.png")
+
+
+def _plot(rows, chosen, plan, path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, len(chosen), figsize=(4.2 * len(chosen), 3.8), squeeze=False)
+    for ax, (name, *_) in zip(axes[0], chosen):
+        for m in plan:
+            pts = sorted((r["seconds"], r["rmse"]) for r in rows if r["scene"] == name and r["method"] == m)
+            if pts:
+                ax.loglog(*zip(*pts), marker="o", label=m)
+        ax.set_title(name)
+        ax.set_xlabel("seconds per frame")
+        ax.set_ylabel("RMSE vs reference")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0][0].legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+if __name__ == "__main__":
+    main()
