@@ -101,6 +101,8 @@ class Renderer:
         aovs: dict[str, np.ndarray] = {}
         if shutter.exposed and ("Z" in s.aovs or "motion" in s.aovs):
             depth, motion = ctx.depth_motion()
+            if getattr(ctx, "aov_motion", None) is not None:
+                motion = ctx.aov_motion  # the velocity method's own buffer (object + camera from depth)
             if "Z" in s.aovs:
                 aovs["Z"] = depth.astype(np.float32)
             if "motion" in s.aovs:

@@ -31,6 +31,7 @@ class FrameContext:
     timings: dict = field(default_factory=dict)
     counters: dict = field(default_factory=dict)
     _tables: TriangleTables | None = None
+    aov_motion: np.ndarray | None = None
 
     @contextmanager
     def timed(self, stage: str):

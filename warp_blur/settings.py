@@ -49,6 +49,11 @@ class RenderSettings:
             error in the time an edge covers a pixel, as a share of the shutter).
         max_segments: upper bound of motion segments per prim (power of two).
         memory_budget_mb: analytic interval arrays above this render in pixel bands.
+        soft_edge_radius: velocity method: blur radius (pixels) of the soft-edge velocity buffer (0 = off).
+        velocity_extrude: velocity method: vertex-trail extrusion (vertices facing the motion at
+            shutter close, the others at open) before the gather.
+        front_blur, back_blur: velocity method: blur strength factors where the surface faces
+            along / against its screen motion.
         device: Warp device ("cpu" or "cuda").
     """
 
@@ -66,6 +71,10 @@ class RenderSettings:
     segment_time_error: float = 0.001
     max_segments: int = 64
     memory_budget_mb: float = 2048.0
+    soft_edge_radius: float = 2.0
+    velocity_extrude: bool = False
+    front_blur: float = 1.0
+    back_blur: float = 1.0
     device: str = "cpu"
     extra: dict = field(default_factory=dict)
 
@@ -130,4 +139,7 @@ class RenderSettings:
             d["time_bits"] = self.resolved_time_bits
         if self.method == "stochastic":
             d["seed"] = self.resolved_seed
+        if self.method == "velocity":
+            d.update(soft_edge_radius=self.soft_edge_radius, extrude=self.velocity_extrude,
+                     front_blur=self.front_blur, back_blur=self.back_blur)
         return d
