@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-from pxr import Usd, UsdGeom, UsdShade
+from pxr import Usd, UsdGeom, UsdShade, UsdSkel
 
 from .errors import InvalidGeometryError
 from .lights import LightPrim, dome_radiance, find_lights, headlight_table, light_table
@@ -209,6 +209,46 @@ class Scene:
 
         return points_at
 
+    def _skinning(self, prim: Usd.Prim):
+        """(skinning query, skel query, skeleton prim) when UsdSkel skins this mesh, else None."""
+        binding = UsdSkel.BindingAPI(prim)
+        if not prim.HasAPI(UsdSkel.BindingAPI):
+            return None
+        skel = binding.GetInheritedSkeleton()
+        root = UsdSkel.Root.Find(prim)
+        if not skel or not root:
+            return None
+        if not hasattr(self, "_skel_cache"):
+            self._skel_cache = UsdSkel.Cache()
+            self._skel_roots: set = set()
+        if root.GetPath() not in self._skel_roots:
+            self._skel_cache.Populate(root, Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate))
+            self._skel_roots.add(root.GetPath())
+        skinning = self._skel_cache.GetSkinningQuery(prim)
+        skel_query = self._skel_cache.GetSkelQuery(skel)
+        if not skinning or not skinning.HasJointInfluences() or not skel_query:
+            return None
+        return skinning, skel_query, skel.GetPrim()
+
+    def _skinned_points_fn(self, prim: Usd.Prim, npts: int, skin) -> Callable[[float], np.ndarray]:
+        """Points at a time as USD's own linear blend skinning computes them (skeleton space)."""
+        skinning, skel_query, _ = skin
+        attr = UsdGeom.Mesh(prim).GetPointsAttr()
+        path = str(prim.GetPath())
+
+        def points_at(time: float) -> np.ndarray:
+            t = Usd.TimeCode(time)
+            pts = attr.Get(t)
+            xforms = skel_query.ComputeSkinningTransforms(t)
+            if pts is None or xforms is None or not skinning.ComputeSkinnedPoints(xforms, pts, t):
+                raise InvalidGeometryError(path, f"UsdSkel could not skin the points at time {time}")
+            arr = np.asarray(pts, np.float64).reshape(-1, 3)
+            if len(arr) != npts or not np.isfinite(arr).all():
+                raise InvalidGeometryError(path, f"skinned points are invalid at time {time}")
+            return arr
+
+        return points_at
+
     def _prim_transform_fn(self, prim: Usd.Prim):
         def transforms_at(time: float, cache: UsdGeom.XformCache) -> np.ndarray:
             return np.array(cache.GetLocalToWorldTransform(prim), np.float64)[None]
@@ -226,7 +266,10 @@ class Scene:
             return
         tris, face_of_tri, counts, npts, smooth = topo
         path = str(prim.GetPath())
-        points_at = self._points_fn(prim, npts)
+        skin = self._skinning(prim)
+        points_at = self._skinned_points_fn(prim, npts, skin) if skin else self._points_fn(prim, npts)
+        # skinned points are in skeleton space: the mesh's own transform is ignored (UsdSkel rules)
+        xform_prim = skin[2] if skin else prim
         try:
             points_at(self.frame)
         except InvalidGeometryError:
@@ -239,7 +282,7 @@ class Scene:
             flags |= FLAG_SMOOTH
         self.units.append(GeomUnit(
             path=path, prim=prim, local_tris=tris, num_points=npts, points_at=points_at,
-            transforms_at=self._prim_transform_fn(prim), num_instances=1,
+            transforms_at=self._prim_transform_fn(xform_prim), num_instances=1,
             tri_colors=_display_colors(prim, t, face_of_tri, tris, counts), material=material,
             flags=flags, blur_scale=blur, visibility_prims=[prim]))
 
