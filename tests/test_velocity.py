@@ -21,7 +21,7 @@ def test_static_scene_is_exactly_the_sharp_image(scene_path):
     vel = wb.render(path, frame=1, resolution=RES, method="velocity")
     np.testing.assert_array_equal(vel.rgba, sharp.rgba)
     assert not vel.aovs["motion"].any()
-    assert vel.stats["gather"] is False
+    assert vel.stats["static_frame"] is True  # no velocity work at all
 
 
 def test_translating_quad_velocity_equals_its_screen_motion(scene_path):

@@ -56,6 +56,26 @@ class FrameContext:
         with self.timed("scene"):
             return self.scene.snapshot(self.shutter.time(u))
 
+    def static_frame(self) -> Snapshot | None:
+        """The centre snapshot when nothing changes over the shutter (geometry, visibility, camera
+        and lights identical at open, centre and close), else None: such a frame is one sharp render."""
+        if self.shutter.instant:
+            return self.snapshot(0.5)
+        snaps = [self.snapshot(0.0), self.snapshot(0.5), self.snapshot(1.0)]
+        a = snaps[1]
+        for b in (snaps[0], snaps[2]):
+            if not (np.array_equal(a.positions, b.positions) and np.array_equal(a.tri_visible, b.tri_visible)
+                    and np.array_equal(a.lights, b.lights)):
+                return None
+        return a
+
+    def render_static(self, snapshot: Snapshot) -> np.ndarray:
+        """(H*W, 4) sharp image of a frame where nothing moves (every method's exact answer)."""
+        rgba = wp.zeros((self.num_pixels, 4), dtype=float, device=self.device)
+        self.sharp_pass(snapshot, 1.0, rgba)
+        self.counters["static_frame"] = True
+        return rgba.numpy()
+
     def shading(self, snapshots: list[Snapshot]):
         lights = np.stack([s.lights for s in snapshots]) if snapshots else np.zeros((1, 0, 18), np.float32)
         return make_shading(self.scene.material_table, lights, self.scene.dome, self.device)

@@ -178,6 +178,9 @@ def tile_neighbor_max(vhalf: np.ndarray, tile: int) -> tuple[np.ndarray, int]:
 
 
 def render_velocity(ctx: FrameContext) -> np.ndarray:
+    static = ctx.static_frame()
+    if static is not None:  # nothing moves: every instant is the same sharp image
+        return ctx.render_static(static)
     s = ctx.settings
     dev = ctx.device
     h, w = ctx.proj.height, ctx.proj.width

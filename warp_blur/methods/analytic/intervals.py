@@ -365,6 +365,48 @@ def sample_ray(view: View, px: int, py: int, sub: wp.vec2):
     return pixel_ray_origin(view, x, y), pixel_ray_direction(view, x, y)
 
 
+@wp.func
+def pixel_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, px: int, py: int, sub: wp.vec2,
+                    n_shade_max: int, lights_static: int, write: int, base: int, iv_t: wp.array(dtype=wp.vec2),
+                    iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3),
+                    fallbacks: wp.array(dtype=int)) -> int:
+    """Count or store the intervals of one pixel sample. Only the nearest static surface is kept
+    (it covers the whole shutter, so static surfaces behind it never show), and moving entries
+    entirely behind it are skipped: static geometry costs what a sharp render costs."""
+    o, d = sample_ray(view, px, py, sub)
+    sx = float(px) + sub[0]
+    sy = float(py) + sub[1]
+    tile = pixel_tile(view, px, py)
+    e_static = int(-1)
+    z_static = float(wp.inf)
+    for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
+        e = bins.tile_entries[i]
+        if geo.entry_k0[e] == geo.entry_k1[e] and not box_rejects(bins, e, sx, sy):
+            vi = geo.tri_vertices[geo.entry_tri[e]]
+            k = geo.entry_k0[e]
+            hit = intersect_triangle(o, d, geo.positions[k, vi[0]], geo.positions[k, vi[1]], geo.positions[k, vi[2]], vi)
+            if hit[0] > 0.0 and in_range(view, hit[1]) and hit[1] < z_static:
+                z_static = hit[1]
+                e_static = e
+    n = int(0)
+    for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
+        e = bins.tile_entries[i]
+        k0 = geo.entry_k0[e]
+        k1 = geo.entry_k1[e]
+        if k0 != k1 and not box_rejects(bins, e, sx, sy):
+            vi = geo.tri_vertices[geo.entry_tri[e]]
+            zmin = wp.min(wp.min(wp.min(-geo.positions[k0, vi[0]][2], -geo.positions[k0, vi[1]][2]),
+                                 wp.min(-geo.positions[k0, vi[2]][2], -geo.positions[k1, vi[0]][2])),
+                          wp.min(-geo.positions[k1, vi[1]][2], -geo.positions[k1, vi[2]][2]))
+            if view.ortho != 0 or zmin <= z_static:
+                n += entry_intervals(view, geo, sh, e, o, d, n_shade_max, lights_static, write, base + n, iv_t,
+                                     iv_z, iv_rgb, fallbacks)
+    if e_static >= 0:
+        n += entry_intervals(view, geo, sh, e_static, o, d, n_shade_max, lights_static, write, base + n, iv_t, iv_z,
+                             iv_rgb, fallbacks)
+    return n
+
+
 @wp.kernel(enable_backward=False)
 def count_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, sub: wp.vec2, n_shade_max: int,
                     lights_static: int, first_pixel: int,
@@ -373,19 +415,8 @@ def count_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, sub: wp.
                     iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3)):
     """counts[pix] = number of intervals at the pixel's sample (iv_* are not written)."""
     pix = first_pixel + wp.tid()
-    px = pix % view.width
-    py = pix // view.width
-    o, d = sample_ray(view, px, py, sub)
-    tile = pixel_tile(view, px, py)
-    n = int(0)
-    sx = float(px) + sub[0]
-    sy = float(py) + sub[1]
-    for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
-        e = bins.tile_entries[i]
-        if not box_rejects(bins, e, sx, sy):
-            n += entry_intervals(view, geo, sh, e, o, d, n_shade_max, lights_static, 0, 0, iv_t, iv_z, iv_rgb,
-                                 fallbacks)
-    counts[pix] = n
+    counts[pix] = pixel_intervals(view, geo, sh, bins, pix % view.width, pix // view.width, sub, n_shade_max,
+                                  lights_static, 0, 0, iv_t, iv_z, iv_rgb, fallbacks)
 
 
 @wp.kernel(enable_backward=False)
@@ -396,15 +427,5 @@ def fill_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, sub: wp.v
                    iv_rgb: wp.array(dtype=wp.vec3)):
     """Store each pixel's intervals at offsets[pix] - chunk_base in the chunk's arrays."""
     pix = first_pixel + wp.tid()
-    px = pix % view.width
-    py = pix // view.width
-    o, d = sample_ray(view, px, py, sub)
-    tile = pixel_tile(view, px, py)
-    base = offsets[pix] - chunk_base
-    sx = float(px) + sub[0]
-    sy = float(py) + sub[1]
-    for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
-        e = bins.tile_entries[i]
-        if not box_rejects(bins, e, sx, sy):
-            base += entry_intervals(view, geo, sh, e, o, d, n_shade_max, lights_static, 1, base, iv_t, iv_z,
-                                    iv_rgb, fallbacks)
+    pixel_intervals(view, geo, sh, bins, pix % view.width, pix // view.width, sub, n_shade_max, lights_static, 1,
+                    offsets[pix] - chunk_base, iv_t, iv_z, iv_rgb, fallbacks)
