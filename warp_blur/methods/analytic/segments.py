@@ -130,8 +130,21 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
     tri_e, k0_e, k1_e = [], [], []
     tri_ids = np.arange(scene.num_triangles, dtype=np.int32)
     vis = np.stack([snap(i).tri_visible for i in keep]) if scene.num_triangles else np.zeros((len(keep), 0), bool)
+    # vertices that never move over the sampled knots: their triangles are static entries even
+    # inside a moving prim (e.g. the resting instances of an instancer, or a skinned body's torso)
+    sampled = np.stack([snaps[i].positions for i in sorted(snaps)]) if snaps else None
+    vertex_static = (sampled == sampled[:1]).all(axis=(0, 2)) if sampled is not None else None
     for ui, k in enumerate(seg_of_unit):
         tris = tri_ids[scene.tri_unit == ui]
+        if k > 0 and vertex_static is not None:
+            still = vertex_static[scene.tri_vertices[tris]].all(axis=1)
+            if still.any():
+                fixed = tris[still]
+                fixed = fixed[vis[0, fixed]]
+                tri_e.append(fixed)
+                k0_e.append(np.zeros(len(fixed), np.int32))
+                k1_e.append(np.zeros(len(fixed), np.int32))
+                tris = tris[~still]
         if k == 0:
             tris = tris[vis[0, tris]]
             tri_e.append(tris)

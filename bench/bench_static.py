@@ -1,0 +1,55 @@
+"""Only what the scene requires: analytic (and the other methods) against the sharp render on a
+fully static and a mostly static (95% of triangles still) version of the large scene, one run.
+
+    python bench/bench_static.py [--resolution 1024x768] [--repeats 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from tqdm import tqdm
+
+sys.path.insert(0, os.path.dirname(__file__))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "stages"))
+from common import OUT, save, table, timed_median  # noqa: E402
+
+import make_large  # noqa: E402
+import warp_blur as wb  # noqa: E402
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--resolution", default="1024x768")
+    ap.add_argument("--repeats", type=int, default=3)
+    args = ap.parse_args()
+    res = tuple(int(x) for x in args.resolution.split("x"))
+    os.makedirs(os.path.join(OUT, "scenes"), exist_ok=True)
+    variants = {"static": 0.0, "mostly_static": 0.05}
+    rows = []
+    cases = [(v, m) for v in variants for m in ("sharp", "analytic", "stochastic", "accumulation", "velocity")]
+    for variant, method in tqdm(cases, desc="static bench", unit="run"):
+        path = os.path.join(OUT, "scenes", f"large_{variant}.usda")
+        if not os.path.exists(path):
+            make_large.main(path, moving_fraction=variants[variant])
+        if method == "sharp":
+            settings = wb.RenderSettings(method="accumulation", samples=1, shutter=(0.0, 0.0), aovs=())
+        else:
+            settings = wb.RenderSettings(method=method, aovs=())
+        renderer = wb.Renderer(path, resolution=res, settings=settings)
+        seconds, result = timed_median(lambda: renderer.render(2.0), args.repeats)
+        rows.append({"scene": variant, "method": method, "seconds": seconds, "triangles": result.stats["triangles"],
+                     "static_frame": result.stats.get("static_frame", False),
+                     "intervals_per_pixel": result.stats.get("intervals_per_pixel_mean", "")})
+    for r in rows:
+        sharp = next(x for x in rows if x["scene"] == r["scene"] and x["method"] == "sharp")
+        r["x_sharp"] = r["seconds"] / sharp["seconds"]
+    print(f"large scene variants at {res[0]}x{res[1]}")
+    print(table(rows, ["scene", "method", "seconds", "x_sharp", "static_frame", "intervals_per_pixel", "triangles"]))
+    print("saved", save("static.json", rows))
+
+
+if __name__ == "__main__":
+    main()
