@@ -21,6 +21,11 @@ from .settings import RenderSettings
 from .stage import Shutter
 
 
+#: Shutter fractions probed to decide that nothing moves. Open, centre and close alone alias
+#: (a full turn per half shutter looks static); the irregular extra probes make that unlikely.
+MOTION_PROBES = (0.0, 0.1234, 0.25, 0.5, 0.6180, 0.75, 1.0)
+
+
 @dataclass
 class FrameContext:
     scene: Scene
@@ -61,9 +66,11 @@ class FrameContext:
         and lights identical at open, centre and close), else None: such a frame is one sharp render."""
         if self.shutter.instant:
             return self.snapshot(0.5)
-        snaps = [self.snapshot(0.0), self.snapshot(0.5), self.snapshot(1.0)]
-        a = snaps[1]
-        for b in (snaps[0], snaps[2]):
+        a = self.snapshot(0.5)
+        for u in MOTION_PROBES:
+            if u == 0.5:
+                continue
+            b = self.snapshot(u)
             if not (np.array_equal(a.positions, b.positions) and np.array_equal(a.tri_visible, b.tri_visible)
                     and np.array_equal(a.lights, b.lights)):
                 return None

@@ -69,7 +69,7 @@ class RenderSettings:
     skip_invalid: bool = False
     segment_error_px: float = 0.25
     segment_time_error: float = 0.001
-    max_segments: int = 64
+    max_segments: int = 128
     memory_budget_mb: float = 2048.0
     soft_edge_radius: float = 2.0
     velocity_extrude: bool = False

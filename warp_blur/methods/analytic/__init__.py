@@ -105,7 +105,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
                                                      MAX_EXACT_EVENTS, truncated, rgba], dev, s.threads, start=p0)
     ctx.counters.update({
         "time_bits": bits, "shading_samples_max": n_shade, "motion_segments": plan.segments_per_prim,
-        "motion_segment_error_px": plan.max_error_px, "motion_snapshots": plan.snapshots, "entries": int(len(plan.entry_tri)),
+        "motion_segment_error_px": plan.max_error_px, "motion_snapshots": plan.snapshots, "motion_segments_capped": plan.capped, "entries": int(len(plan.entry_tri)),
         "intervals": total_iv, "intervals_per_pixel_mean": total_iv / max(num_px * len(subs), 1),
         "intervals_per_pixel_max": max_iv, "interval_bytes_peak": peak_bytes, "interval_chunks": num_chunks,
         "near_far_fallbacks": int(fallbacks.numpy()[0]), "exact_truncations": int(truncated.numpy()[0]),
