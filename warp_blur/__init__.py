@@ -6,9 +6,10 @@
 """
 
 from .api import Renderer, RenderResult, __version__, render
+from .batch import render_frames
 from .errors import InvalidGeometryError, SettingsError, StageError, UserError
 from .output import read_exr, write_exr, write_image, write_png
 from .settings import METHODS, RenderSettings
 
-__all__ = ["render", "Renderer", "RenderResult", "RenderSettings", "write_exr", "write_png", "write_image",
+__all__ = ["render", "render_frames", "Renderer", "RenderResult", "RenderSettings", "write_exr", "write_png", "write_image",
            "read_exr", "METHODS", "UserError", "StageError", "SettingsError", "InvalidGeometryError", "__version__"]

@@ -17,7 +17,7 @@ import warp as wp
 
 from . import log
 from .frame import FrameContext
-from .errors import SettingsError
+from .errors import SettingsError, StageError, UserError
 from .methods import get_method
 from .scene import Scene
 from .settings import RenderSettings
@@ -80,6 +80,13 @@ class Renderer:
         self.conform = conform_policy(self.stage)
         init_warp(self.settings.device)
 
+    def check_frame(self, frame: float) -> None:
+        """Frames outside the stage's authored time range are a user error (naming the range)."""
+        if self.stage.HasAuthoredTimeCodeRange():
+            lo, hi = self.stage.GetStartTimeCode(), self.stage.GetEndTimeCode()
+            if not (lo <= frame <= hi):
+                raise UserError(f"frame {frame:g} is outside the stage's authored range {lo:g}..{hi:g}")
+
     def default_frame(self) -> float:
         return float(self.stage.GetStartTimeCode()) if self.stage.HasAuthoredTimeCodeRange() else 1.0
 
@@ -91,6 +98,9 @@ class Renderer:
         shutter = shutter_for_frame(self.stage, self.camera, frame, s.shutter)
         t0 = time.perf_counter()
         scene = Scene(self.stage, self.camera, frame, shutter, skip_invalid=s.skip_invalid)
+        if not scene.units:
+            raise StageError(f"the stage {self.scene_path} has no renderable geometry "
+                             f"(meshes, implicit gprims or point instancers)")
         ctx = FrameContext(scene=scene, proj=proj, shutter=shutter, settings=s, device=device)
         ctx.timings["load"] = time.perf_counter() - t0
         h, w = proj.height, proj.width

@@ -12,7 +12,6 @@ import json
 import logging
 import os
 import sys
-import time
 
 from .errors import UserError
 
@@ -49,6 +48,8 @@ def _build_parser() -> argparse.ArgumentParser:
     r.add_argument("--device", default="cpu")
     r.add_argument("--compression", default="zip", choices=["zip", "zips", "piz", "none", "rle", "dwaa"])
     r.add_argument("--json", action="store_true", help="print per-frame stats as JSON lines")
+    r.add_argument("--workers", type=int, default=1, help="render frames in N local processes")
+    r.add_argument("--cluster", help="render frames on a Dask cluster (scheduler address, e.g. tcp://host:8786)")
     r.add_argument("--quiet", action="store_true")
 
     c = sub.add_parser("compare", help="compare two EXR images (RMSE over all RGBA values)")
@@ -103,10 +104,12 @@ def _existing_fingerprint(path: str) -> str | None:
 
 
 def _cmd_render(args) -> int:
+    import dataclasses
+
     from tqdm import tqdm
 
     from .api import Renderer
-    from .output import output_fingerprint_write
+    from .batch import FrameTask, execute, remove_stale_temporaries
     from .stage import output_path_for_frame, parse_frames, parse_resolution
 
     settings = settings_from_args(args)
@@ -114,45 +117,56 @@ def _cmd_render(args) -> int:
     ext = os.path.splitext(args.output)[1].lower()
     if ext not in (".exr", ".png"):
         raise UserError(f"output {args.output}: unsupported extension '{ext}' (use .exr or .png)")
-    if args.frames is not None:
-        frames = parse_frames(args.frames)
-    else:
-        frames = None
+    if args.workers < 1:
+        raise UserError(f"--workers must be at least 1, got {args.workers}")
+    frames = parse_frames(args.frames) if args.frames is not None else None
+    # open the stage here: bad input (stage, camera, resolution, frames) fails before any work
     renderer = Renderer(args.scene, camera=args.camera, resolution=resolution, settings=settings)
     if frames is None:
         frames = [args.frame if args.frame is not None else renderer.default_frame()]
+    for f in frames:
+        renderer.check_frame(f)
     paths = [output_path_for_frame(args.output, f, len(frames)) for f in frames]
     cam = str(renderer.camera.GetPath())
-    failures: list[tuple[float, str]] = []
-    bar = tqdm(total=len(frames), unit="frame", disable=args.quiet or len(frames) < 2, file=sys.stderr,
-               dynamic_ncols=True)
+    settings_dict = {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
+    remove_stale_temporaries(paths)
+    tasks, skipped = [], 0
     for frame, path in zip(frames, paths):
         fp = fingerprint(args.scene, cam, renderer.resolution, frame, settings)
         if args.resume and _existing_fingerprint(path) == fp:
-            bar.update(1)
+            skipped += 1
             if args.json:
                 print(json.dumps({"frame": frame, "output": path, "skipped": True}), flush=True)
             continue
-        t0 = time.perf_counter()
-        try:
-            result = renderer.render(frame)
-            result.metadata["fingerprint"] = fp
-            output_fingerprint_write(path, result, args.compression, fp)
-        except UserError as exc:
-            failures.append((frame, str(exc)))
-            logging.getLogger("warp_blur").error(f"frame {frame:g} failed: {exc}")
-            if args.fail_fast:
-                break
-            bar.update(1)
-            continue
-        bar.set_postfix_str(f"{time.perf_counter() - t0:.2f}s/frame")
+        tasks.append(FrameTask(scene=args.scene, camera=cam, resolution=renderer.resolution, settings=settings_dict,
+                               frame=frame, output=path, compression=args.compression, fingerprint=fp))
+    if args.workers == 1 and not args.cluster:
+        from . import batch
+        batch._renderers.clear()
+        key = (args.scene, cam, renderer.resolution, tuple(sorted((k, repr(v)) for k, v in settings_dict.items())))
+        batch._renderers[key] = renderer  # reuse the stage already opened
+    failures: list[tuple[float, str]] = []
+    bar = tqdm(total=len(frames), initial=skipped, unit="frame", disable=args.quiet or len(frames) < 2,
+               file=sys.stderr, dynamic_ncols=True)
+    single = len(frames) == 1
+    user_errors = 0
+    for res in execute(tasks, workers=args.workers, cluster=args.cluster, fail_fast=args.fail_fast):
+        if "error" in res:
+            failures.append((res["frame"], res["error"]))
+            user_errors += bool(res.get("user_error"))
+            if not single:
+                logging.getLogger("warp_blur").error(f"frame {res['frame']:g} failed: {res['error']}")
+        else:
+            bar.set_postfix_str(f"{res['seconds']:.2f}s/frame")
+            if args.json:
+                print(json.dumps(res, default=str), flush=True)
         bar.update(1)
-        if args.json:
-            print(json.dumps({"frame": frame, "output": path, "stats": result.stats}, default=str), flush=True)
     bar.close()
+    if single and failures and user_errors:
+        raise UserError(failures[0][1])  # one frame of bad input: exit 2, one line
     if failures:
         print(f"warp-blur: {len(failures)} of {len(frames)} frames failed: "
-              + "; ".join(f"frame {f:g}: {m}" for f, m in failures), file=sys.stderr)
+              + "; ".join(f"frame {f:g}: {m}" for f, m in sorted(failures)), file=sys.stderr)
         return 1
     return 0
 
@@ -195,11 +209,18 @@ def _cmd_info(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    logging.basicConfig(format="warp-blur: warning: %(message)s", level=logging.WARNING, stream=sys.stderr)
+    log = logging.getLogger("warp_blur")
+    for h in list(log.handlers):
+        log.removeHandler(h)
+    handler = logging.StreamHandler(sys.stderr)  # this call's stderr (tests swap it)
+    handler.setFormatter(logging.Formatter("warp-blur: %(levelname)s: %(message)s"))
+    log.addHandler(handler)
+    log.setLevel(logging.WARNING)
+    log.propagate = False
     try:
         args = _build_parser().parse_args(argv)
         if getattr(args, "quiet", False):
-            logging.getLogger("warp_blur").setLevel(logging.ERROR)
+            log.setLevel(logging.ERROR)
         if args.command == "render":
             return _cmd_render(args)
         if args.command == "compare":
