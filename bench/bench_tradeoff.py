@@ -16,7 +16,6 @@ import math
 import os
 import sys
 
-import numpy as np
 from tqdm import tqdm
 
 sys.path.insert(0, os.path.dirname(__file__))

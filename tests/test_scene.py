@@ -3,7 +3,7 @@ visibility, upAxis Z and large coordinates are read as authored."""
 
 import numpy as np
 import pytest
-from pxr import Gf, Usd, UsdGeom, Vt
+from pxr import Gf, UsdGeom, Vt
 
 from warp_blur.errors import InvalidGeometryError
 from warp_blur.scene import Scene

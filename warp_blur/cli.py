@@ -13,7 +13,12 @@ import logging
 import os
 import sys
 
+from typing import TYPE_CHECKING
+
 from .errors import UserError
+
+if TYPE_CHECKING:
+    from .settings import RenderSettings
 
 
 class _Parser(argparse.ArgumentParser):

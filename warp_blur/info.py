@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 from pxr import UsdGeom
 
-from .api import init_warp
 from .lights import DISTANT, DISK, RECT, SPHERE
 from .scene import Scene
 from .stage import (choose_camera, choose_resolution, conform_policy, open_stage, projection_at,

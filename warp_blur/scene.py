@@ -15,7 +15,7 @@ import numpy as np
 from pxr import Usd, UsdGeom, UsdShade, UsdSkel
 
 from .errors import InvalidGeometryError
-from .lights import LightPrim, dome_radiance, find_lights, headlight_table, light_table
+from .lights import dome_radiance, find_lights, headlight_table, light_table
 from .log import warn_once
 from .materials import MaterialTable
 from .stage import Shutter

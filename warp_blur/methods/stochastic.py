@@ -12,15 +12,14 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..device_data import make_bins, make_geometry, make_shading
 from ..frame import FrameContext
 from ..kernel_types import Bins, Geometry, Shading, View
 from ..parallel import launch_pixels
 from ..raster import box_rejects, pixel_tile
 from ..rays import edge_cross, entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin
 from ..shading import shade_entry_hit
-from .analytic.intervals import edge_coeffs, edge_degenerate, edge_sides, quad_roots
-from .analytic.segments import plan_motion
+from .analytic.intervals import edge_coeffs, edge_degenerate, edge_sides, next_breakpoint, quad_roots
+from .analytic.segments import prepare_motion
 
 SCRATCH_BYTES = 64 * 2**20
 
@@ -51,19 +50,7 @@ def covered_time_bounds(geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> wp.vec
     s_prev = float(0.0)
     for _step in range(7):
         if s_prev < 1.0:
-            s_next = float(1.0)
-            if ra[0] > s_prev and ra[0] < s_next:
-                s_next = ra[0]
-            if ra[1] > s_prev and ra[1] < s_next:
-                s_next = ra[1]
-            if rb[0] > s_prev and rb[0] < s_next:
-                s_next = rb[0]
-            if rb[1] > s_prev and rb[1] < s_next:
-                s_next = rb[1]
-            if rc[0] > s_prev and rc[0] < s_next:
-                s_next = rc[0]
-            if rc[1] > s_prev and rc[1] < s_next:
-                s_next = rc[1]
+            s_next = next_breakpoint(ra, rb, rc, s_prev)
             sm = 0.5 * (s_prev + s_next)
             pa = a0 + sm * da
             pb = b0 + sm * db
@@ -171,14 +158,7 @@ def render_stochastic(ctx: FrameContext) -> np.ndarray:
     s = ctx.settings
     n = s.resolved_samples
     dev = ctx.device
-    with ctx.timed("segments"):
-        plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.segment_error_px,
-                           s.segment_time_error)
-    geo = make_geometry(ctx.tables, plan.positions, plan.normals, plan.entry_tri, plan.entry_k0, plan.entry_k1)
-    tile_bins = ctx.bin(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1)
-    bins = make_bins(tile_bins, dev)
-    sh = make_shading(ctx.scene.material_table, plan.lights, ctx.scene.dome, dev)
-    view = ctx.view(tile_bins)
+    plan, geo, bins, sh, view = prepare_motion(ctx)
     rgba = wp.zeros((ctx.num_pixels, 4), dtype=float, device=dev)
     subs = ctx.sub_pixel_offsets()
     max_band = max(1, SCRATCH_BYTES // (12 * n))

@@ -11,12 +11,11 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ...device_data import make_bins, make_geometry, make_shading
 from ...frame import FrameContext
 from ...parallel import launch_pixels
 from .intervals import count_intervals, fill_intervals
 from .resolve import resolve_bitmask, resolve_exact
-from .segments import plan_motion
+from .segments import prepare_motion
 
 BYTES_PER_INTERVAL = 8 + 8 + 12 + 4  # times, depths, radiance, sort index
 MAX_EXACT_EVENTS = 1 << 16
@@ -43,14 +42,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     bits = s.resolved_time_bits
     n_shade = s.resolved_samples
     dev = ctx.device
-    with ctx.timed("segments"):
-        plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.segment_error_px,
-                           s.segment_time_error)
-    geo = make_geometry(ctx.tables, plan.positions, plan.normals, plan.entry_tri, plan.entry_k0, plan.entry_k1)
-    tile_bins = ctx.bin(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1)
-    bins = make_bins(tile_bins, dev)
-    sh = make_shading(ctx.scene.material_table, plan.lights, ctx.scene.dome, dev)
-    view = ctx.view(tile_bins)
+    plan, geo, bins, sh, view = prepare_motion(ctx)
     dome = wp.vec3(*[float(x) for x in ctx.scene.dome])
     num_px = ctx.num_pixels
     rgba = wp.zeros((num_px, 4), dtype=float, device=dev)

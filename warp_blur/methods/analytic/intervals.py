@@ -124,6 +124,20 @@ def edge_sides(coef: wp.vec3, degenerate: int, s: float, c: wp.vec3) -> wp.vec2:
 
 
 @wp.func
+def next_breakpoint(ra: wp.vec2, rb: wp.vec2, rc: wp.vec2, s_prev: float) -> float:
+    """The smallest edge root after s_prev (1 when none): the next time a coverage sign may change."""
+    s_next = float(1.0)
+    for r in range(2):
+        if ra[r] > s_prev and ra[r] < s_next:
+            s_next = ra[r]
+        if rb[r] > s_prev and rb[r] < s_next:
+            s_next = rb[r]
+        if rc[r] > s_prev and rc[r] < s_next:
+            s_next = rc[r]
+    return s_next
+
+
+@wp.func
 def plane_depth(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> float:
     """View depth where the ray meets the triangle's plane (inf when parallel)."""
     n = wp.cross(b - a, c - a)
@@ -331,19 +345,7 @@ def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, 
     s_prev = float(0.0)
     for _step in range(7):
         if s_prev < 1.0:
-            s_next = float(1.0)
-            if ra[0] > s_prev and ra[0] < s_next:
-                s_next = ra[0]
-            if ra[1] > s_prev and ra[1] < s_next:
-                s_next = ra[1]
-            if rb[0] > s_prev and rb[0] < s_next:
-                s_next = rb[0]
-            if rb[1] > s_prev and rb[1] < s_next:
-                s_next = rb[1]
-            if rc[0] > s_prev and rc[0] < s_next:
-                s_next = rc[0]
-            if rc[1] > s_prev and rc[1] < s_next:
-                s_next = rc[1]
+            s_next = next_breakpoint(ra, rb, rc, s_prev)
             sm = 0.5 * (s_prev + s_next)
             pa = m.a0 + sm * (m.a1 - m.a0) - o
             pb = m.b0 + sm * (m.b1 - m.b0) - o

@@ -186,3 +186,18 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
                       entry_k0=cat(k0_e), entry_k1=cat(k1_e),
                       segments_per_prim={u.path: k for u, k in zip(scene.units, seg_of_unit)},
                       max_error_px=max_err, lights_static=lights_static, snapshots=len(snaps), capped=capped)
+
+
+def prepare_motion(ctx):
+    """The moving scene of a frame on the device, as the analytic and stochastic methods use it:
+    (plan, Geometry, Bins, Shading, View)."""
+    from ...device_data import make_bins, make_geometry, make_shading
+    s = ctx.settings
+    with ctx.timed("segments"):
+        plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.segment_error_px,
+                           s.segment_time_error)
+    geo = make_geometry(ctx.tables, plan.positions, plan.normals, plan.entry_tri, plan.entry_k0, plan.entry_k1)
+    tile_bins = ctx.bin(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1)
+    bins = make_bins(tile_bins, ctx.device)
+    sh = make_shading(ctx.scene.material_table, plan.lights, ctx.scene.dome, ctx.device)
+    return plan, geo, bins, sh, ctx.view(tile_bins)
