@@ -127,3 +127,48 @@ def test_large_world_coordinates_stay_precise(scene_path):
     _, _, scene = _scene(path)
     p = scene.snapshot(1.0).positions.astype(np.float32)  # what kernels see
     np.testing.assert_allclose(p, [[0, 0, -10], [1e-3, 0, -10], [0, 1e-3, -10]], atol=1e-6)
+
+
+def test_messy_usd_references_payloads_instances_matrices(tmp_path, scene_path):
+    """References, payloads, instanceable prims, xformOp:transform matrices, a subdivision mesh
+    (rendered as its cage) and an unsupported prim (warned about once) compose as USD says."""
+    from authoring import add_camera, add_mesh, new_stage
+    from pxr import Gf, Usd, UsdGeom
+
+    from warp_blur import log
+    asset = str(tmp_path / "asset.usda")
+    a = Usd.Stage.CreateNew(asset)
+    root = UsdGeom.Xform.Define(a, "/Asset")
+    a.SetDefaultPrim(root.GetPrim())
+    m = UsdGeom.Mesh.Define(a, "/Asset/Cage")
+    m.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)])
+    m.CreateFaceVertexCountsAttr([4])
+    m.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    m.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.catmullClark)
+    UsdGeom.Points.Define(a, "/Asset/Dust").CreatePointsAttr([(0, 0, 0)])
+    a.GetRootLayer().Save()
+
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    for i, kind in enumerate(["ref", "ref", "payload"]):
+        prim = stage.DefinePrim(f"/World/Copy{i}", "Xform")
+        if kind == "ref":
+            prim.GetReferences().AddReference(asset)
+            prim.SetInstanceable(True)
+        else:
+            prim.GetPayloads().AddPayload(asset)
+        op = UsdGeom.Xformable(prim).AddTransformOp()
+        op.Set(Gf.Matrix4d(1.0).SetTranslate(Gf.Vec3d(2.0 * i, 0, 0)))
+    stage.GetRootLayer().Save()
+    log.reset()
+    _, _, scene = _scene(path)
+    assert scene.num_triangles == 3 * 2
+    assert all(u.flags & 2 for u in scene.units)  # subdivision cage: smooth normals
+    xs = scene.snapshot(1.0).positions[:, 0].reshape(3, 4).min(axis=1)
+    np.testing.assert_allclose(xs, [0.0, 2.0, 4.0], atol=1e-9)
+    warnings = log.take_warnings()
+    dust = [w for w in warnings if "Dust" in w and "not rendered" in w]
+    assert len(dust) == 3  # once per prim (three composed copies), each naming its path
+    _scene(path)
+    assert not [w for w in log.take_warnings() if "Dust" in w]  # never repeated
