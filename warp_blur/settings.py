@@ -17,12 +17,13 @@ DEFAULT_TIME_BITS = 128
 
 #: Quality presets: method -> preset -> {setting: value}. An explicit setting always wins.
 QUALITY_PRESETS: dict[str, dict[str, dict[str, int]]] = {
-    "accumulation": {"draft": {"samples": 8}, "preview": {"samples": 32}, "final": {"samples": 256}},
-    "stochastic": {"draft": {"samples": 8}, "preview": {"samples": 32}, "final": {"samples": 256}},
+    # chosen from the measured Pareto front (bench/bench_tradeoff.py, README "Quality presets")
+    "accumulation": {"draft": {"samples": 16}, "preview": {"samples": 64}, "final": {"samples": 256}},
+    "stochastic": {"draft": {"samples": 16}, "preview": {"samples": 64}, "final": {"samples": 256}},
     "analytic": {
         "draft": {"time_bits": 32, "samples": 2},
-        "preview": {"time_bits": 64, "samples": 8},
-        "final": {"time_bits": 256, "samples": 16},
+        "preview": {"time_bits": 128, "samples": 4},
+        "final": {"time_bits": 512, "samples": 16},
     },
     "velocity": {"draft": {"samples": 4}, "preview": {"samples": 8}, "final": {"samples": 16}},
 }
