@@ -59,10 +59,11 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     for sub in subs:
         sub_v = wp.vec2(*sub)
         counts = wp.zeros(num_px, dtype=int, device=dev)
+        static_hit = wp.zeros(num_px, dtype=int, device=dev)
         with ctx.timed("count"):
             launch_pixels(count_intervals, num_px,
                           lambda first, _n: [view, geo, sh, bins, sub_v, n_shade, lights_static, first, counts,
-                                             fallbacks, dummy2, dummy2, dummy3], dev, s.threads)
+                                             fallbacks, dummy2, dummy2, dummy3, static_hit], dev, s.threads)
         counts_np = counts.numpy()
         offsets_np = np.concatenate([[0], np.cumsum(counts_np, dtype=np.int64)])
         if offsets_np[-1] >= 2**31:
@@ -84,7 +85,8 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
             with ctx.timed("fill"):
                 launch_pixels(fill_intervals, p1 - p0,
                               lambda first, _n: [view, geo, sh, bins, sub_v, n_shade, lights_static, first, offsets,
-                                                 base, fallbacks, iv_t, iv_z, iv_rgb], dev, s.threads, start=p0)
+                                                 base, fallbacks, iv_t, iv_z, iv_rgb, static_hit], dev, s.threads,
+                              start=p0)
             with ctx.timed("resolve"):
                 if bits > 0:
                     launch_pixels(resolve_bitmask, p1 - p0,

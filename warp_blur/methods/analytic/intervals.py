@@ -368,28 +368,42 @@ def sample_ray(view: View, px: int, py: int, sub: wp.vec2):
 
 
 @wp.func
-def pixel_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, px: int, py: int, sub: wp.vec2,
+def pixel_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, pix: int, sub: wp.vec2,
                     n_shade_max: int, lights_static: int, write: int, base: int, iv_t: wp.array(dtype=wp.vec2),
                     iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3),
-                    fallbacks: wp.array(dtype=int)) -> int:
+                    fallbacks: wp.array(dtype=int), static_hit: wp.array(dtype=int)) -> int:
     """Count or store the intervals of one pixel sample. Only the nearest static surface is kept
     (it covers the whole shutter, so static surfaces behind it never show), and moving entries
-    entirely behind it are skipped: static geometry costs what a sharp render costs."""
+    entirely behind it are skipped: static geometry costs what a sharp render costs. The count
+    pass (write=0) finds that surface and records it in static_hit[pix]; the fill pass reuses it."""
+    px = pix % view.width
+    py = pix // view.width
     o, d = sample_ray(view, px, py, sub)
     sx = float(px) + sub[0]
     sy = float(py) + sub[1]
     tile = pixel_tile(view, px, py)
     e_static = int(-1)
     z_static = float(wp.inf)
-    for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
-        e = bins.tile_entries[i]
-        if geo.entry_k0[e] == geo.entry_k1[e] and not box_rejects(bins, e, sx, sy):
-            vi = geo.tri_vertices[geo.entry_tri[e]]
-            k = geo.entry_k0[e]
-            hit = intersect_triangle(o, d, geo.positions[k, vi[0]], geo.positions[k, vi[1]], geo.positions[k, vi[2]], vi)
-            if hit[0] > 0.0 and in_range(view, hit[1]) and hit[1] < z_static:
-                z_static = hit[1]
-                e_static = e
+    if write == 0:
+        for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
+            e = bins.tile_entries[i]
+            if geo.entry_k0[e] == geo.entry_k1[e] and not box_rejects(bins, e, sx, sy):
+                vi = geo.tri_vertices[geo.entry_tri[e]]
+                k = geo.entry_k0[e]
+                hit = intersect_triangle(o, d, geo.positions[k, vi[0]], geo.positions[k, vi[1]],
+                                         geo.positions[k, vi[2]], vi)
+                if hit[0] > 0.0 and in_range(view, hit[1]) and hit[1] < z_static:
+                    z_static = hit[1]
+                    e_static = e
+        static_hit[pix] = e_static
+    else:
+        e_static = static_hit[pix]
+        if e_static >= 0:
+            vi = geo.tri_vertices[geo.entry_tri[e_static]]
+            k = geo.entry_k0[e_static]
+            hit = intersect_triangle(o, d, geo.positions[k, vi[0]], geo.positions[k, vi[1]], geo.positions[k, vi[2]],
+                                     vi)
+            z_static = hit[1]
     n = int(0)
     for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
         e = bins.tile_entries[i]
@@ -414,11 +428,13 @@ def count_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, sub: wp.
                     lights_static: int, first_pixel: int,
                     # outputs
                     counts: wp.array(dtype=int), fallbacks: wp.array(dtype=int),
-                    iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3)):
-    """counts[pix] = number of intervals at the pixel's sample (iv_* are not written)."""
+                    iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3),
+                    static_hit: wp.array(dtype=int)):
+    """counts[pix] = number of intervals at the pixel's sample (iv_* are not written);
+    static_hit[pix] = its nearest static entry (or -1), reused by the fill pass."""
     pix = first_pixel + wp.tid()
-    counts[pix] = pixel_intervals(view, geo, sh, bins, pix % view.width, pix // view.width, sub, n_shade_max,
-                                  lights_static, 0, 0, iv_t, iv_z, iv_rgb, fallbacks)
+    counts[pix] = pixel_intervals(view, geo, sh, bins, pix, sub, n_shade_max, lights_static, 0, 0, iv_t, iv_z,
+                                  iv_rgb, fallbacks, static_hit)
 
 
 @wp.kernel(enable_backward=False)
@@ -426,8 +442,8 @@ def fill_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, sub: wp.v
                    lights_static: int, first_pixel: int, offsets: wp.array(dtype=int), chunk_base: int,
                    # outputs
                    fallbacks: wp.array(dtype=int), iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
-                   iv_rgb: wp.array(dtype=wp.vec3)):
+                   iv_rgb: wp.array(dtype=wp.vec3), static_hit: wp.array(dtype=int)):
     """Store each pixel's intervals at offsets[pix] - chunk_base in the chunk's arrays."""
     pix = first_pixel + wp.tid()
-    pixel_intervals(view, geo, sh, bins, pix % view.width, pix // view.width, sub, n_shade_max, lights_static, 1,
-                    offsets[pix] - chunk_base, iv_t, iv_z, iv_rgb, fallbacks)
+    pixel_intervals(view, geo, sh, bins, pix, sub, n_shade_max, lights_static, 1, offsets[pix] - chunk_base, iv_t,
+                    iv_z, iv_rgb, fallbacks, static_hit)
