@@ -107,12 +107,17 @@ class Renderer:
         if not shutter.exposed:
             rgba = np.zeros((h, w, 4), np.float32)
         else:
-            rgba = get_method(s.method)(ctx).reshape(h, w, 4).astype(np.float32)
+            static = ctx.static_frame()
+            if static is not None:  # nothing moves: every method's answer is the one sharp image
+                rgba = ctx.render_static(static).reshape(h, w, 4).astype(np.float32)
+            else:
+                rgba = get_method(s.method)(ctx).reshape(h, w, 4).astype(np.float32)
         aovs: dict[str, np.ndarray] = {}
         if shutter.exposed and ("Z" in s.aovs or "motion" in s.aovs):
-            depth, motion = ctx.depth_motion()
-            if getattr(ctx, "aov_motion", None) is not None:
-                motion = ctx.aov_motion  # the velocity method's own buffer (object + camera from depth)
+            if ctx.aov_motion is not None:  # the velocity method's own buffers (object + camera from depth)
+                depth, motion = ctx.aov_depth, ctx.aov_motion
+            else:
+                depth, motion = ctx.depth_motion()
             if "Z" in s.aovs:
                 aovs["Z"] = depth.astype(np.float32)
             if "motion" in s.aovs:

@@ -37,6 +37,7 @@ class FrameContext:
     counters: dict = field(default_factory=dict)
     _tables: TriangleTables | None = None
     aov_motion: np.ndarray | None = None
+    aov_depth: np.ndarray | None = None
 
     @contextmanager
     def timed(self, stage: str):

@@ -57,6 +57,19 @@ def edge_cross(a: wp.vec3, b: wp.vec3, ia: int, ib: int) -> wp.vec3:
 
 
 @wp.func
+def hit_from_edges(a: wp.vec3, b: wp.vec3, c: wp.vec3, e_ab: float, e_bc: float, e_ca: float) -> wp.vec4:
+    """(1, view depth, barycentric of b, barycentric of c) of the point on abc's plane that the
+    edge functions locate ((0, ...) when they sum to zero: the ray is parallel to the plane)."""
+    s = e_ab + e_bc + e_ca
+    if s == 0.0:
+        return wp.vec4(0.0, 0.0, 0.0, 0.0)
+    wb = e_ca / s
+    wc = e_ab / s
+    p = (e_bc / s) * a + wb * b + wc * c
+    return wp.vec4(1.0, -p[2], wb, wc)
+
+
+@wp.func
 def intersect_triangle(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3, vi: wp.vec3i) -> wp.vec4:
     """(hit 0/1, view depth, barycentric of b, barycentric of c) of the line o + t d and abc,
     whose vertex indices are vi (they fix each shared edge's canonical orientation).
@@ -72,18 +85,13 @@ def intersect_triangle(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec
     e_ab = wp.dot(d, c_ab)
     e_bc = wp.dot(d, c_bc)
     e_ca = wp.dot(d, c_ca)
-    s = e_ab + e_bc + e_ca
-    if s == 0.0:
+    if e_ab + e_bc + e_ca == 0.0:
         return wp.vec4(0.0, 0.0, 0.0, 0.0)
     pos = (e_ab > 0.0 or (e_ab == 0.0 and edge_owns(c_ab))) and (e_bc > 0.0 or (e_bc == 0.0 and edge_owns(c_bc))) and (e_ca > 0.0 or (e_ca == 0.0 and edge_owns(c_ca)))
     neg = (e_ab < 0.0 or (e_ab == 0.0 and edge_owns(-c_ab))) and (e_bc < 0.0 or (e_bc == 0.0 and edge_owns(-c_bc))) and (e_ca < 0.0 or (e_ca == 0.0 and edge_owns(-c_ca)))
     if not (pos or neg):
         return wp.vec4(0.0, 0.0, 0.0, 0.0)
-    wa = e_bc / s
-    wb = e_ca / s
-    wc = e_ab / s
-    p = wa * a + wb * b + wc * c
-    return wp.vec4(1.0, -p[2], wb, wc)
+    return hit_from_edges(a, b, c, e_ab, e_bc, e_ca)
 
 
 @wp.func

@@ -14,9 +14,6 @@ def instants(n: int) -> np.ndarray:
 
 
 def render_accumulation(ctx: FrameContext) -> np.ndarray:
-    static = ctx.static_frame()
-    if static is not None:  # nothing moves: every instant is the same sharp image
-        return ctx.render_static(static)
     n = ctx.settings.resolved_samples
     if ctx.shutter.instant:
         n = 1  # every instant is the same one

@@ -152,9 +152,6 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, bins: Bins,
 
 
 def render_stochastic(ctx: FrameContext) -> np.ndarray:
-    static = ctx.static_frame()
-    if static is not None:  # nothing moves: every instant is the same sharp image
-        return ctx.render_static(static)
     s = ctx.settings
     n = s.resolved_samples
     dev = ctx.device

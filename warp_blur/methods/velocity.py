@@ -178,9 +178,6 @@ def tile_neighbor_max(vhalf: np.ndarray, tile: int) -> tuple[np.ndarray, int]:
 
 
 def render_velocity(ctx: FrameContext) -> np.ndarray:
-    static = ctx.static_frame()
-    if static is not None:  # nothing moves: every instant is the same sharp image
-        return ctx.render_static(static)
     s = ctx.settings
     dev = ctx.device
     h, w = ctx.proj.height, ctx.proj.width
@@ -218,6 +215,7 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
         if camera_moves:
             velocity += camera_motion_from_depth(ctx, depth, cfw[0], cfw[1], cfw[2])
         ctx.aov_motion = velocity.astype(np.float32)
+        ctx.aov_depth = depth.astype(np.float32)
         if s.front_blur != 1.0 or s.back_blur != 1.0:
             n = normals_from_depth(ctx, depth)
             # screen-space facing: the normal's x/y (y down on screen) against the motion

@@ -35,9 +35,6 @@ def pixel_chunks(offsets: np.ndarray, budget_intervals: int) -> list[tuple[int, 
 
 
 def render_analytic(ctx: FrameContext) -> np.ndarray:
-    static = ctx.static_frame()
-    if static is not None:  # nothing moves: every instant is the same sharp image
-        return ctx.render_static(static)
     s = ctx.settings
     bits = s.resolved_time_bits
     n_shade = s.resolved_samples

@@ -23,7 +23,7 @@ import warp as wp
 
 from ...kernel_types import Bins, Geometry, Shading, View
 from ...raster import box_rejects, pixel_tile
-from ...rays import edge_cross, edge_owns, intersect_triangle, pixel_ray_direction, pixel_ray_origin
+from ...rays import edge_cross, edge_owns, hit_from_edges, intersect_triangle, pixel_ray_direction, pixel_ray_origin
 from ...shading import shade_entry_hit
 
 MAX_PIECES = 16
@@ -153,17 +153,7 @@ def plane_hit(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.
     ao = a - o
     bo = b - o
     co = c - o
-    e_ab = wp.dot(d, wp.cross(ao, bo))
-    e_bc = wp.dot(d, wp.cross(bo, co))
-    e_ca = wp.dot(d, wp.cross(co, ao))
-    s = e_ab + e_bc + e_ca
-    if s == 0.0:
-        return wp.vec4(0.0, 0.0, 0.0, 0.0)
-    wa = e_bc / s
-    wb = e_ca / s
-    wc = e_ab / s
-    p = wa * a + wb * b + wc * c
-    return wp.vec4(1.0, -p[2], wb, wc)
+    return hit_from_edges(a, b, c, wp.dot(d, wp.cross(ao, bo)), wp.dot(d, wp.cross(bo, co)), wp.dot(d, wp.cross(co, ao)))
 
 
 @wp.struct
