@@ -65,3 +65,43 @@ def moving_layers_stage(path: str, layers: int, cross: bool = False, size: float
                  translate_samples={0.5: (-dx - 0.2, 0.05 * (i % 3), z0), 1.5: (dx + 0.2, -0.05 * (i % 3), z1)})
     stage.GetRootLayer().Save()
     return path
+
+
+def shadow_stage(path: str, occluder_samples=None, occluder_at=(-0.6, 1.0, 0.0), light: str = "distant",
+                 light_samples=None, shadows: bool = True, mover: bool = False, light_size: float = 0.0,
+                 camera_samples=None) -> str:
+    """A lit grey ground seen from above at 45°, an emissive horizontal square occluder above it
+    (translating with `occluder_samples`, frame -> position), one light straight overhead
+    ("distant", "sphere" (radius light_size) or "rect" (side light_size), moving with
+    `light_samples`), optionally a second small occluder moving elsewhere (`mover`) and a moving
+    camera (`camera_samples`)."""
+    from authoring import add_sphere_light, add_xform_ops
+    from pxr import UsdLux
+    stage = new_stage(path)
+    add_camera(stage, translate=None if camera_samples else (0.0, 4.0, 4.0), translate_samples=camera_samples,
+               rotate_axis="X", rotate_samples={0: -45.0})
+    grey = add_material(stage, "/World/Looks/Grey", diffuse=(0.8, 0.8, 0.8), roughness=1.0)
+    dark = add_material(stage, "/World/Looks/Dark", emissive=(0.05, 0.05, 0.05))
+    add_mesh(stage, "/World/Ground", [(-2.5, 0, 2.5), (2.5, 0, 2.5), (2.5, 0, -2.5), (-2.5, 0, -2.5)], [4],
+             [0, 1, 2, 3], material=grey)
+    square = [(-0.4, 0, 0.4), (0.4, 0, 0.4), (0.4, 0, -0.4), (-0.4, 0, -0.4)]
+    add_mesh(stage, "/World/Occluder", square, [4], [0, 1, 2, 3], material=dark,
+             translate=None if occluder_samples else occluder_at, translate_samples=occluder_samples)
+    if mover:
+        add_mesh(stage, "/World/Mover", [(x * 0.5, y, z * 0.5) for x, y, z in square], [4], [0, 1, 2, 3],
+                 material=dark, translate_samples={0.5: (1.3, 0.8, -0.6), 1.5: (1.3, 0.8, 0.6)})
+    if light == "distant":
+        add_distant_light(stage, "/World/Light", intensity=3.0, rotate=(-90, 0, 0), shadows=shadows)
+    elif light == "sphere":
+        add_sphere_light(stage, "/World/Light", radius=light_size, intensity=30.0, translate=(0, 3, 0),
+                         translate_samples=light_samples, shadows=shadows)
+    else:
+        rect = UsdLux.RectLight.Define(stage, "/World/Light")
+        rect.CreateWidthAttr(light_size)
+        rect.CreateHeightAttr(light_size)
+        rect.CreateIntensityAttr(30.0)
+        UsdLux.ShadowAPI.Apply(rect.GetPrim()).CreateShadowEnableAttr(shadows)
+        add_xform_ops(rect, translate=None if light_samples else (0, 3, 0), translate_samples=light_samples,
+                      rotate_axis="X", rotate=-90.0)
+    stage.GetRootLayer().Save()
+    return path

@@ -17,8 +17,10 @@ RES = (64, 48)
 
 
 def _pair(path, frame=1, res=RES, n=1024, **analytic):
-    ref = wb.render(path, frame=frame, resolution=res, samples=n, aovs=())
-    out = wb.render(path, frame=frame, resolution=res, method="analytic", aovs=(), **analytic)
+    """Analytic and accumulation-n renders; visibility over time is what is compared here, so
+    shadows are off (test_shadows.py compares shadows in motion against their own reference)."""
+    ref = wb.render(path, frame=frame, resolution=res, samples=n, aovs=(), shadows="off")
+    out = wb.render(path, frame=frame, resolution=res, method="analytic", aovs=(), shadows="off", **analytic)
     return out, ref
 
 

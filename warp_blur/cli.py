@@ -47,6 +47,13 @@ def _build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=int)
     r.add_argument("--spatial-samples", type=int, default=1, help="n -> n×n sub-pixel positions")
     r.add_argument("--threads", type=int)
+    sg = r.add_argument_group("shadows")
+    sg.add_argument("--shadows", default="warped", choices=["warped", "direct", "off"],
+                    help="shadow maps warped from key maps, rendered per instant (reference), or none")
+    sg.add_argument("--shadow-map-size", type=int, help="texels per shadow-map side (power of two; 512)")
+    sg.add_argument("--light-samples", type=int, help="point samples per area light: soft shadows (1)")
+    sg.add_argument("--shadow-times", type=int, default=8, help="shadow-map instants over the shutter (8)")
+    sg.add_argument("--shadow-grid", type=int, default=128, help="warp control-point cells per map side (128)")
     r.add_argument("--resume", action="store_true", help="skip frames already rendered with the same settings")
     r.add_argument("--fail-fast", action="store_true")
     r.add_argument("--skip-invalid", action="store_true", help="drop prims with invalid geometry (warned)")
@@ -82,7 +89,9 @@ def settings_from_args(args) -> "RenderSettings":
         method=args.method, samples=args.samples, time_bits=args.time_bits, quality=args.quality,
         seed=args.seed, spatial_samples=args.spatial_samples,
         shutter=parse_shutter(args.shutter) if args.shutter else None, threads=args.threads,
-        aovs=aovs or (), skip_invalid=args.skip_invalid, device=args.device)
+        aovs=aovs or (), skip_invalid=args.skip_invalid, device=args.device, shadows=args.shadows,
+        shadow_map_size=args.shadow_map_size, light_samples=args.light_samples, shadow_times=args.shadow_times,
+        shadow_grid=args.shadow_grid)
 
 
 def fingerprint(scene: str, camera: str, resolution, frame: float, settings) -> str:

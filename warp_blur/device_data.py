@@ -8,6 +8,7 @@ import warp as wp
 from .binning import TileBins
 from .camera import Projection
 from .kernel_types import Bins, Geometry, Shading, View
+from .shadow_lookup import FACE_WIDTH
 
 
 def _arr(a: np.ndarray, dtype, device: str, min_len: int = 1):
@@ -66,8 +67,10 @@ def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.nda
     return g
 
 
-def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, device: str) -> Shading:
-    """lights: (L+1, NL, LIGHT_WIDTH) tables at L+1 knots over the shutter."""
+def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, device: str,
+                 shadows=None, options=None) -> Shading:
+    """lights: (L+1, NL, LIGHT_WIDTH) tables at L+1 knots over the shutter; shadows: a
+    shadow_maps.ShadowData (or None: no light casts shadows) with its ShadowOptions."""
     s = Shading()
     s.materials = wp.array(np.ascontiguousarray(materials, np.float32), dtype=float, device=device)
     nl = lights.shape[1]
@@ -76,6 +79,19 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
     s.num_lights = nl
     s.light_segments = lights.shape[0] - 1
     s.dome = wp.vec3(*[float(x) for x in dome])
+    if shadows is None:
+        s.shadow_maps = wp.zeros((1, 1, 1), dtype=float, device=device)
+        s.shadow_faces = wp.zeros((1, FACE_WIDTH), dtype=float, device=device)
+        s.shadow_lights = wp.array(np.full((max(nl, 1), 3), -1, np.int32), dtype=int, device=device)
+        s.shadow_times, s.shadow_size = 1, 1
+    else:
+        s.shadow_maps = wp.array(shadows.maps, dtype=float, device=device)
+        s.shadow_faces = wp.array(shadows.faces, dtype=float, device=device)
+        s.shadow_lights = wp.array(shadows.lights, dtype=int, device=device)
+        s.shadow_times, s.shadow_size = shadows.times, shadows.size
+    s.shadow_bias = float(options.bias) if options is not None else 1.0
+    s.shadow_normal_bias = float(options.normal_bias) if options is not None else 1.5
+    s.shadow_pcf = int(options.pcf) if options is not None else 0
     return s
 
 

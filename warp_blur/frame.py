@@ -18,6 +18,7 @@ from .parallel import launch_pixels
 from .raster import render_depth_motion, render_sharp
 from .scene import Scene, Snapshot
 from .settings import RenderSettings
+from .shadow_maps import Sample, ShadowMaps, ShadowOptions, lit_materials
 from .stage import Shutter
 
 
@@ -38,6 +39,8 @@ class FrameContext:
     _tables: TriangleTables | None = None
     aov_motion: np.ndarray | None = None
     aov_depth: np.ndarray | None = None
+    _instant_shadows: ShadowMaps | None = None
+    instants: int = 1   # sharp instants this frame will shade (accumulation sets it)
 
     @contextmanager
     def timed(self, stage: str):
@@ -84,9 +87,47 @@ class FrameContext:
         self.counters["static_frame"] = True
         return rgba.numpy()
 
+    # ------------------------------------------------------------------------------ shadows
+    def shadow_options(self) -> ShadowOptions:
+        s = self.settings
+        return ShadowOptions(mode=s.shadows, size=s.resolved_shadow_map_size, grid=s.shadow_grid,
+                             times=s.shadow_times, keys=s.shadow_keys, light_samples=s.resolved_light_samples,
+                             bias=s.shadow_bias, normal_bias=s.shadow_normal_bias, pcf=s.shadow_pcf,
+                             memory_mb=s.shadow_memory_mb)
+
+    def shadow_maps(self, sample_at) -> ShadowMaps | None:
+        """Shadow maps over this frame's shutter, the scene at shutter time u given by
+        sample_at(u) -> Sample; None when no light can cast a visible shadow (no time spent)."""
+        scene = self.scene
+        if self.settings.shadows == "off" or scene.headlight or not scene.light_prims:
+            return None
+        if not lit_materials(scene.material_table, scene.tri_material):
+            return None
+        sm = ShadowMaps(self.tables, scene.tri_vertices, scene.tri_object, True, sample_at,
+                        self.shadow_options(), self.device, self.settings.threads, self.timings, self.counters)
+        return sm if sm.active else None
+
+    def shutter_fraction(self, time_code: float) -> float:
+        if self.shutter.instant:
+            return 0.5
+        return (time_code - self.shutter.open) / (self.shutter.close - self.shutter.open)
+
     def shading(self, snapshots: list[Snapshot]):
+        """Shading tables for one sharp instant (with that instant's shadow maps)."""
         lights = np.stack([s.lights for s in snapshots]) if snapshots else np.zeros((1, 0, 18), np.float32)
-        return make_shading(self.scene.material_table, lights, self.scene.dome, self.device)
+        shadows = None
+        if len(snapshots) == 1:
+            if self._instant_shadows is None:
+                def sample_at(u: float) -> Sample:
+                    snap = self.scene.snapshot(self.shutter.time(u))
+                    return Sample(snap.positions, snap.tri_visible, snap.lights)
+                self._instant_shadows = self.shadow_maps(sample_at) or False
+            if self._instant_shadows:
+                with self.timed("shadow_total"):
+                    shadows = self._instant_shadows.data_for_instant(self.shutter_fraction(snapshots[0].time),
+                                                                     self.instants, self.settings.shadow_times)
+        return make_shading(self.scene.material_table, lights, self.scene.dome, self.device, shadows,
+                            self.shadow_options())
 
     def bin(self, positions: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray,
             entry_k1: np.ndarray) -> TileBins:
@@ -120,9 +161,10 @@ class FrameContext:
         geo, bins = self.static_geometry([snapshot], 0)
         sh = self.shading([snapshot])
         view, b = self.view(bins), make_bins(bins, self.device)
+        u = self.shutter_fraction(snapshot.time)   # static entries ignore it; shadow maps shared over time use it
         with self.timed("render"):
             launch_pixels(render_sharp, self.num_pixels,
-                          lambda first, _n: [view, geo, sh, b, 0.0, weight, first, rgba],
+                          lambda first, _n: [view, geo, sh, b, u, weight, first, rgba],
                           self.device, self.settings.threads)
 
     def depth_motion(self, snapshots: list[Snapshot] | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -47,13 +47,28 @@ class Geometry:
 
 @wp.struct
 class Shading:
-    """Materials (M, 12), lights at L+1 knots (L+1, NL, 18) and the dome radiance."""
+    """Materials (M, 12), lights at L+1 knots (L+1, NL, 18), the dome radiance, and shadow maps.
+
+    Shadow maps (see shadow_lookup.py): shadow_maps (num_maps, S, S) depth along each face's view
+    axis; shadow_faces (num_maps, FACE_WIDTH) face_from_cam rotation rows, translation, window,
+    ortho flag; shadow_lights (NL, 3) per light: first map (-1 = casts no shadow), light samples M,
+    faces F. Map of light j, sample m, time b, face f: first + (m * shadow_times + b) * F + f,
+    time b being shutter time (b + 0.5) / shadow_times.
+    """
 
     materials: wp.array2d(dtype=float)
     lights: wp.array3d(dtype=float)
     num_lights: int
     light_segments: int
     dome: wp.vec3
+    shadow_maps: wp.array3d(dtype=float)
+    shadow_faces: wp.array2d(dtype=float)
+    shadow_lights: wp.array2d(dtype=int)
+    shadow_times: int
+    shadow_size: int
+    shadow_bias: float         # depth bias, in texels (world size of a texel at the receiver)
+    shadow_normal_bias: float  # receiver offset along its normal, in texels
+    shadow_pcf: int            # PCF radius in texels (0 = bilinear 2x2)
 
 
 @wp.struct

@@ -4,7 +4,9 @@ Radiance of a light is color × intensity × 2^exposure (÷ world-space area wit
 Table columns (LIGHT_WIDTH floats per light), read by `shading.py`:
   0 type (0 distant, 1 sphere/point, 2 rect, 3 disk), 1-3 radiance rgb, 4-6 position,
   7-9 emission axis (unit; for distant lights the direction *towards* the light),
-  10-12 half-extent u axis, 13-15 half-extent v axis, 16 radius, 17 casts shadows.
+  10-12 half-extent u axis, 13-15 half-extent v axis (for distant and sphere lights: the light's
+  unit local x and y axes, which shadow maps use as the light's frame), 16 radius, 17 casts shadows
+  (UsdLux `inputs:shadow:enable`, whose fallback is true).
 Irradiance models: distant E = L·cosθ; sphere of radius r at distance d: E = π L (r/d)² cosθ
 (a point light, radius 0, has the intensity of USD's fallback 0.5 radius); rect and disk lights
 are integrated over a fixed 4×4 stratified set of points on the light.
@@ -102,6 +104,9 @@ def light_table(lights: list[LightPrim], time: float, cam_from_world: np.ndarray
         row[0] = lp.kind
         row[4:7] = origin
         row[17] = 1.0 if (shadow is None or shadow) else 0.0
+        if lp.kind in (DISTANT, SPHERE):
+            row[10:13] = ax / max(np.linalg.norm(ax), 1e-30)
+            row[13:16] = ay / max(np.linalg.norm(ay), 1e-30)
         if lp.kind == DISTANT:
             row[7:10] = az / max(np.linalg.norm(az), 1e-30)
         elif lp.kind == SPHERE:

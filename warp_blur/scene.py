@@ -369,9 +369,10 @@ class Scene:
 
     # ----------------------------------------------------------------------------- tables
     def _build_tables(self) -> None:
-        tris, colors, mats, flags, unit_of_tri = [], [], [], [], []
+        tris, colors, mats, flags, unit_of_tri, objects = [], [], [], [], [], []
         self.unit_vertex_offsets = []
         v = 0
+        num_objects = 0
         for ui, u in enumerate(self.units):
             self.unit_vertex_offsets.append(v)
             for i in range(u.num_instances):
@@ -381,6 +382,8 @@ class Scene:
             mats.append(np.full(n, u.material, np.int32))
             flags.append(np.full(n, u.flags, np.int32))
             unit_of_tri.append(np.full(n, ui, np.int32))
+            objects.append(np.repeat(np.arange(u.num_instances), len(u.local_tris)) + num_objects)
+            num_objects += u.num_instances
             v += u.num_points * u.num_instances
         self.num_vertices = v
         cat = lambda a, shape, dt: np.concatenate(a).astype(dt) if a else np.zeros(shape, dt)  # noqa: E731
@@ -389,6 +392,7 @@ class Scene:
         self.tri_material = cat(mats, (0,), np.int32)
         self.tri_flags = cat(flags, (0,), np.int32)
         self.tri_unit = cat(unit_of_tri, (0,), np.int32)
+        self.tri_object = cat(objects, (0,), np.int32)   # (T,) prim instance of each triangle
         self.material_table = self.materials.array()
         self.any_smooth = bool((self.tri_flags & FLAG_SMOOTH).any())
 

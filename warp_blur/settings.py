@@ -28,6 +28,14 @@ QUALITY_PRESETS: dict[str, dict[str, dict[str, int]]] = {
     "velocity": {"draft": {"samples": 4}, "preview": {"samples": 8}, "final": {"samples": 16}},
 }
 
+#: Shadow presets by quality (every method): texels per map side and samples per area light.
+SHADOW_PRESETS = {"draft": {"shadow_map_size": 256, "light_samples": 1},
+                  "preview": {"shadow_map_size": 512, "light_samples": 4},
+                  "final": {"shadow_map_size": 1024, "light_samples": 9}}
+DEFAULT_SHADOW_MAP_SIZE = 512
+DEFAULT_LIGHT_SAMPLES = 1
+SHADOW_MODES = ("warped", "direct", "off")
+
 
 @dataclass(frozen=True, kw_only=True)
 class RenderSettings:
@@ -55,6 +63,19 @@ class RenderSettings:
             shutter close, the others at open) before the gather.
         front_blur, back_blur: velocity method: blur strength factors where the surface faces
             along / against its screen motion.
+        shadows: shadow maps "warped" from a few key maps (default), "direct" (a map rendered per
+            instant: the reference) or "off" (lights unoccluded).
+        shadow_map_size: texels per shadow-map side (power of two); None = preset or 512.
+        shadow_grid: warp control-point cells per map side (power of two; the map size = one per texel).
+        shadow_times: map instants over the shutter (comparisons interpolated between them) for
+            stochastic, analytic and warped accumulation with more instants than this; direct
+            accumulation renders a map per instant; 1 when nothing moves in a light's view.
+        shadow_keys: most key maps per light in warped mode (open and close, more where light-space
+            motion is not linear).
+        light_samples: point samples of an area light (soft shadows); None = preset or 1 (hard).
+        shadow_bias, shadow_normal_bias: depth bias and receiver normal offset, in texels.
+        shadow_pcf: percentage-closer filter radius in texels (0 = bilinear 2×2).
+        shadow_memory_mb: budget for one frame's shadow maps (fewer instants above it).
         device: Warp device ("cpu" or "cuda").
     """
 
@@ -76,6 +97,16 @@ class RenderSettings:
     velocity_extrude: bool = False
     front_blur: float = 1.0
     back_blur: float = 1.0
+    shadows: str = "warped"
+    shadow_map_size: int | None = None
+    shadow_grid: int = 128
+    shadow_times: int = 8
+    shadow_keys: int = 5
+    light_samples: int | None = None
+    shadow_bias: float = 1.0
+    shadow_normal_bias: float = 1.5
+    shadow_pcf: int = 0
+    shadow_memory_mb: float = 1024.0
     device: str = "cpu"
     extra: dict = field(default_factory=dict)
 
@@ -98,6 +129,20 @@ class RenderSettings:
             raise SettingsError(f"threads must be at least 1, got {self.threads}")
         if self.max_segments < 1 or self.max_segments & (self.max_segments - 1):
             raise SettingsError("max_segments must be a power of two")
+        if self.shadows not in SHADOW_MODES:
+            raise SettingsError(f"unknown shadow mode '{self.shadows}' (choose from {', '.join(SHADOW_MODES)})")
+        for name in ("shadow_map_size", "shadow_grid"):
+            v = getattr(self, name)
+            if v is not None and not (1 <= v <= 8192 and v & (v - 1) == 0):
+                raise SettingsError(f"{name.replace('_', ' ')} must be a power of two up to 8192, got {v}")
+        if not 1 <= self.shadow_times <= 256:
+            raise SettingsError(f"shadow times must be between 1 and 256, got {self.shadow_times}")
+        if not 2 <= self.shadow_keys <= 65:
+            raise SettingsError(f"shadow keys must be between 2 and 65, got {self.shadow_keys}")
+        if self.light_samples is not None and not 1 <= self.light_samples <= 256:
+            raise SettingsError(f"light samples must be between 1 and 256, got {self.light_samples}")
+        if not 0 <= self.shadow_pcf <= 8:
+            raise SettingsError(f"shadow PCF radius must be between 0 and 8, got {self.shadow_pcf}")
         bad = [a for a in self.aovs if a not in ("Z", "motion", "coverage")]
         if bad:
             raise SettingsError(f"unknown AOV '{bad[0]}' (choose from Z, motion, coverage)")
@@ -124,6 +169,18 @@ class RenderSettings:
         return preset if preset is not None else DEFAULT_TIME_BITS
 
     @property
+    def resolved_shadow_map_size(self) -> int:
+        if self.shadow_map_size is not None:
+            return self.shadow_map_size
+        return SHADOW_PRESETS[self.quality]["shadow_map_size"] if self.quality else DEFAULT_SHADOW_MAP_SIZE
+
+    @property
+    def resolved_light_samples(self) -> int:
+        if self.light_samples is not None:
+            return self.light_samples
+        return SHADOW_PRESETS[self.quality]["light_samples"] if self.quality else DEFAULT_LIGHT_SAMPLES
+
+    @property
     def resolved_seed(self) -> int:
         return 0 if self.seed is None else self.seed
 
@@ -135,7 +192,12 @@ class RenderSettings:
         d = {"method": self.method, "samples": self.resolved_samples,
              "spatial_samples": self.spatial_samples, "shutter": self.shutter,
              "segment_error_px": self.segment_error_px, "segment_time_error": self.segment_time_error,
-             "max_segments": self.max_segments}
+             "max_segments": self.max_segments, "shadows": self.shadows}
+        if self.shadows != "off":
+            d.update(shadow_map_size=self.resolved_shadow_map_size, shadow_grid=self.shadow_grid,
+                     shadow_times=self.shadow_times, shadow_keys=self.shadow_keys,
+                     light_samples=self.resolved_light_samples, shadow_bias=self.shadow_bias,
+                     shadow_normal_bias=self.shadow_normal_bias, shadow_pcf=self.shadow_pcf)
         if self.method == "analytic":
             d["time_bits"] = self.resolved_time_bits
         if self.method == "stochastic":

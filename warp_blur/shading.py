@@ -2,7 +2,9 @@
 
 Model: radiance = emissive + Σ_lights f(l, v) E_l cosθ + (diffuse + F0) · dome, where
 f = diffuse/π + D·G·F / (4 cosθ_l cosθ_v) with GGX D (α = roughness²), Schlick-GGX G
-(k = α/2) and Schlick F from F0. A material with black diffuse and black F0 returns its
+(k = α/2) and Schlick F from F0. A shadowing light's term is multiplied by its shadow-map
+visibility (shadow_lookup.py: mean over the light's samples, so area lights cast soft shadows);
+the dome's ambient term is not shadowed. A material with black diffuse and black F0 returns its
 emissive colour exactly, whatever the lights and the dome. Double-sided back faces are shaded
 with the flipped normal; single-sided back faces keep the front normal. Opacity is ignored
 (rendered opaque, with a warning at load time).
@@ -14,24 +16,15 @@ import warp as wp
 
 from .kernel_types import Geometry, Shading, View
 from .rays import entry_normal, entry_vertex
+from .light_table import light_value, light_vec
+from .shadow_lookup import light_visibility
 
 PI = wp.constant(3.14159265358979)
 
 
 @wp.func
-def light_value(sh: Shading, j: int, col: int, u: float) -> float:
-    """Column `col` of light j at shutter time u (linear between the light knots)."""
-    if sh.light_segments == 0:
-        return sh.lights[0, j, col]
-    x = wp.clamp(u, 0.0, 1.0) * float(sh.light_segments)
-    k = wp.min(int(x), sh.light_segments - 1)
-    f = x - float(k)
-    return sh.lights[k, j, col] * (1.0 - f) + sh.lights[k + 1, j, col] * f
-
-
-@wp.func
-def light_vec(sh: Shading, j: int, col: int, u: float) -> wp.vec3:
-    return wp.vec3(light_value(sh, j, col, u), light_value(sh, j, col + 1, u), light_value(sh, j, col + 2, u))
+def max_component(c: wp.vec3) -> float:
+    return wp.max(wp.max(c[0], c[1]), c[2])
 
 
 @wp.func
@@ -57,9 +50,10 @@ def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, diffuse: wp.vec3, f0: wp.vec3, roug
 
 
 @wp.func
-def direct_light(sh: Shading, j: int, u: float, p: wp.vec3, n: wp.vec3, v: wp.vec3,
+def direct_light(sh: Shading, j: int, u: float, du: float, p: wp.vec3, n: wp.vec3, v: wp.vec3,
                  diffuse: wp.vec3, f0: wp.vec3, roughness: float) -> wp.vec3:
-    """Reflected radiance from light j at camera-space point p with normal n, view vector v."""
+    """Reflected radiance from light j at camera-space point p with normal n, view vector v, at
+    shutter time u (its shadow averaged over [u - du/2, u + du/2])."""
     kind = int(sh.lights[0, j, 0])
     radiance = light_vec(sh, j, 1, u)
     out = wp.vec3(0.0, 0.0, 0.0)
@@ -110,13 +104,24 @@ def direct_light(sh: Shading, j: int, u: float, p: wp.vec3, n: wp.vec3, v: wp.ve
                 if cos_s > 0.0 and cos_l > 0.0:
                     e = cos_l * area / (16.0 * dist2)
                     out = out + wp.cw_mul(brdf(n, v, l, diffuse, f0, roughness), radiance) * (e * cos_s)
+    if max_component(out) > 0.0:
+        out = out * light_visibility(sh, j, u, du, p, n)
     return out
+
 
 
 @wp.func
 def shade_entry_hit(view: View, geo: Geometry, sh: Shading, e: int, alpha: float, u: float,
                     o: wp.vec3, d: wp.vec3, hit: wp.vec4) -> wp.vec3:
     """Radiance leaving the hit point of entry e (at interpolation alpha, shutter time u)."""
+    return shade_entry_hit_span(view, geo, sh, e, alpha, u, 0.0, o, d, hit)
+
+
+@wp.func
+def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: float, u: float, du: float,
+                         o: wp.vec3, d: wp.vec3, hit: wp.vec4) -> wp.vec3:
+    """Radiance leaving the hit point of entry e (at interpolation alpha, shutter time u), with
+    shadows averaged over the shutter span [u - du/2, u + du/2] that the caller stands it for."""
     tri = geo.entry_tri[e]
     m = geo.tri_material[tri]
     emissive = wp.vec3(sh.materials[m, 3], sh.materials[m, 4], sh.materials[m, 5])
@@ -148,5 +153,5 @@ def shade_entry_hit(view: View, geo: Geometry, sh: Shading, e: int, alpha: float
         n = -n
     out = emissive + wp.cw_mul(diffuse + f0, sh.dome)
     for j in range(sh.num_lights):
-        out = out + direct_light(sh, j, u, p, n, v, diffuse, f0, roughness)
+        out = out + direct_light(sh, j, u, du, p, n, v, diffuse, f0, roughness)
     return out

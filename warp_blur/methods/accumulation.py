@@ -18,6 +18,7 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
     if ctx.shutter.instant:
         n = 1  # every instant is the same one
     rgba = wp.zeros((ctx.num_pixels, 4), dtype=float, device=ctx.device)
+    ctx.instants = n
     for u in instants(n):
         ctx.sharp_pass(ctx.snapshot(float(u)), 1.0 / n, rgba)
     ctx.counters["instants"] = n

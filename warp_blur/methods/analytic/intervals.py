@@ -24,7 +24,7 @@ import warp as wp
 from ...kernel_types import Bins, Geometry, Shading, View
 from ...raster import box_rejects, pixel_tile
 from ...rays import edge_cross, edge_owns, hit_from_edges, intersect_triangle, pixel_ray_direction, pixel_ray_origin
-from ...shading import shade_entry_hit
+from ...shading import max_component, shade_entry_hit, shade_entry_hit_span
 
 MAX_PIECES = 16
 CLIP_SAMPLES = 8
@@ -181,11 +181,6 @@ def in_range(view: View, z: float) -> bool:
 
 
 @wp.func
-def max_channel(v: wp.vec3) -> float:
-    return wp.max(wp.max(v[0], v[1]), v[2])
-
-
-@wp.func
 def shade_at(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s: float) -> wp.vec3:
     """Radiance of entry e seen along the ray at entry time s."""
     a = m.a0 + s * (m.a1 - m.a0)
@@ -212,8 +207,8 @@ def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp
         la = shade_at(view, geo, sh, e, m, o, d, s_a)
         lm = shade_at(view, geo, sh, e, m, o, d, 0.5 * (s_a + s_b))
         lb = shade_at(view, geo, sh, e, m, o, d, s_b)
-        dev = wp.max(max_channel(wp.abs(la - lm)), max_channel(wp.abs(lm - lb)))
-        dev = wp.max(dev, max_channel(wp.abs(lm - 0.5 * (la + lb))) * 4.0)
+        dev = wp.max(max_component(wp.abs(la - lm)), max_component(wp.abs(lm - lb)))
+        dev = wp.max(dev, max_component(wp.abs(lm - 0.5 * (la + lb))) * 4.0)
         ns = int(wp.ceil(dev / SHADE_TOLERANCE))
         n = wp.max(n, wp.clamp(ns, 1, n_shade_max))
     if write != 0:
@@ -230,7 +225,9 @@ def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp
             b = m.b0 + sm * (m.b1 - m.b0)
             c = m.c0 + sm * (m.c1 - m.c0)
             hit = plane_hit(o, d, a, b, c)
-            rgb = shade_entry_hit(view, geo, sh, e, sm, m.u0 + sm * du, o, d, hit)
+            # shadows averaged over the piece's shutter span (a static receiver's single piece
+            # sees a moving shadow's whole time average)
+            rgb = shade_entry_hit_span(view, geo, sh, e, sm, m.u0 + sm * du, (s1 - s0) * du, o, d, hit)
             iv_t[base + i] = wp.vec2(m.u0 + s0 * du, m.u0 + s1 * du)
             iv_z[base + i] = wp.vec2(z_prev, z1)
             iv_rgb[base + i] = rgb

@@ -41,6 +41,21 @@ class MotionPlan:
     lights_static: bool
     snapshots: int = 0
     capped: list = None
+    tri_visible: np.ndarray | None = None   # (K+1, T) bool at the knots
+
+    def sample(self, u: float):
+        """The planned scene at shutter time u (positions and lights linear between knots) as a
+        shadow_maps.Sample."""
+        from ...shadow_maps import Sample
+        k_max = self.num_segments
+        x = min(max(u, 0.0), 1.0) * k_max
+        k = min(int(x), k_max - 1) if k_max > 0 else 0
+        f = x - k
+        if k_max == 0:
+            return Sample(self.positions[0], self.tri_visible[0], self.lights[0])
+        pos = self.positions[k] + f * (self.positions[k + 1] - self.positions[k])
+        lights = self.lights[k] + np.float32(f) * (self.lights[k + 1] - self.lights[k])
+        return Sample(pos, self.tri_visible[k + 1] if f >= 1.0 else self.tri_visible[k], lights)
 
     @property
     def num_segments(self) -> int:
@@ -185,7 +200,8 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
     return MotionPlan(positions=positions, normals=normals, lights=lights, entry_tri=cat(tri_e),
                       entry_k0=cat(k0_e), entry_k1=cat(k1_e),
                       segments_per_prim={u.path: k for u, k in zip(scene.units, seg_of_unit)},
-                      max_error_px=max_err, lights_static=lights_static, snapshots=len(snaps), capped=capped)
+                      max_error_px=max_err, lights_static=lights_static, snapshots=len(snaps), capped=capped,
+                      tri_visible=vis)
 
 
 def prepare_motion(ctx):
@@ -199,5 +215,12 @@ def prepare_motion(ctx):
     geo = make_geometry(ctx.tables, plan.positions, plan.normals, plan.entry_tri, plan.entry_k0, plan.entry_k1)
     tile_bins = ctx.bin(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1)
     bins = make_bins(tile_bins, ctx.device)
-    sh = make_shading(ctx.scene.material_table, plan.lights, ctx.scene.dome, ctx.device)
+    shadows = None
+    maps = ctx.shadow_maps(plan.sample)
+    if maps is not None:
+        num_times = maps.times_for(s.shadow_times)
+        with ctx.timed("shadow_total"):
+            shadows = maps.data([(b + 0.5) / num_times for b in range(num_times)])
+    sh = make_shading(ctx.scene.material_table, plan.lights, ctx.scene.dome, ctx.device, shadows,
+                      ctx.shadow_options())
     return plan, geo, bins, sh, ctx.view(tile_bins)

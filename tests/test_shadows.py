@@ -1,0 +1,171 @@
+"""Shadows in motion (issue 6): shadow maps from the stage's lights, direct and warped, soft
+shadows from area lights, and no shadow work where no light casts one."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scenes import shadow_stage
+
+import warp_blur as wb
+from warp_blur.metrics import rmse
+from warp_blur.shadow_maps import fit_faces, light_frame, sample_pattern
+
+RES = (128, 96)
+MOVING = {0.5: (-1.0, 1.0, 0.0), 1.5: (1.0, 1.0, 0.0)}   # the occluder crosses 2 units in the shutter
+
+
+def render(path, method="analytic", **kw):
+    kw.setdefault("shadow_map_size", 256)
+    if method in ("accumulation", "stochastic"):
+        kw.setdefault("samples", 32)
+    return wb.render(path, frame=1, method=method, resolution=RES, **kw)
+
+
+def luminance(result) -> np.ndarray:
+    return result.rgba[..., :3].mean(axis=-1)
+
+
+def shadow_mask(result, lit_level: float) -> np.ndarray:
+    """Ground pixels darker than half the lit ground."""
+    lum = luminance(result)
+    return (lum < 0.5 * lit_level) & (result.rgba[..., 3] > 0.99)
+
+
+# ---------------------------------------------------------------------------------- host helpers
+def test_light_frame_is_orthonormal_and_right_handed():
+    row = np.zeros(18)
+    row[4:7] = (1.0, 2.0, 3.0)
+    row[10:13] = (2.0, 0.0, 0.0)
+    row[13:16] = (0.3, 1.0, 0.0)   # not quite perpendicular: re-orthogonalised
+    origin, axes = light_frame(row)
+    assert np.allclose(origin, (1, 2, 3))
+    assert np.allclose(axes @ axes.T, np.eye(3), atol=1e-12)
+    assert np.allclose(np.cross(axes[0], axes[1]), axes[2])
+
+
+def test_sample_patterns_have_the_requested_count_inside_the_unit_square():
+    for m in (1, 4, 5, 9, 16):
+        pts = sample_pattern(m)
+        assert pts.shape == (m, 2) and np.abs(pts).max() <= 1.0
+    assert np.allclose(sample_pattern(1), 0.0)
+
+
+def test_faces_fit_a_frustum_to_a_cone_and_a_cube_around_the_light():
+    rng = np.random.default_rng(1)
+    below = rng.uniform(-1, 1, (200, 3)) * (1, 1, 0.1) + (0, 0, -3)   # all within ~20° of -z
+    faces = fit_faces(1, below, 256)
+    assert len(faces) == 1 and not faces[0].ortho
+    assert faces[0].rotation[2] @ (0, 0, 1) > 0.99                      # looks down -z, at the points
+    around = rng.normal(size=(500, 3))
+    assert len(fit_faces(1, around, 256)) == 6
+    ortho = fit_faces(0, below, 256)
+    assert len(ortho) == 1 and ortho[0].ortho
+
+
+# ---------------------------------------------------------------------------------- behaviour
+def test_static_occluder_is_identical_in_warped_and_direct_modes(scene_path):
+    """Something else moves (so maps are warped), but the still occluder's shadow is unchanged."""
+    path = shadow_stage(scene_path(), mover=True)
+    warped = render(path, shadows="warped")
+    direct = render(path, shadows="direct")
+    assert warped.stats["shadow_maps_warped"] > 0 and direct.stats["shadow_maps_rendered"] > 0
+    assert warped.stats["shadow_key_maps"] >= 2 and warped.stats["shadow_control_points"] > 0
+    assert "shadow_warp" in warped.stats["time"]
+    left = slice(0, RES[0] // 2)   # the still occluder and its shadow; the mover is on the right
+    assert np.abs(warped.rgba[:, left] - direct.rgba[:, left]).max() < 1e-4
+    lit = np.median(luminance(direct))
+    assert shadow_mask(direct, lit)[:, left].sum() > 30   # there is a shadow to compare
+
+
+def test_maps_shared_over_time_follow_a_moving_camera(scene_path):
+    """Maps are rigid with the light: looked up at another instant than the one they were made
+    for, a still occluder's shadow stays where it is while the camera trucks."""
+    path = shadow_stage(scene_path(), mover=True, camera_samples={0.5: (-0.6, 4.0, 4.0), 1.5: (0.6, 4.0, 4.0)})
+    per_instant = render(path, "accumulation", samples=16, shadows="direct")
+    shared = render(path, "accumulation", samples=16, shadows="warped", shadow_times=2)
+    assert shared.stats["shadow_maps_warped"] == 2
+    left = slice(0, RES[0] // 2)
+    assert rmse(shared.rgba[:, left], per_instant.rgba[:, left]) < 0.004
+
+
+@pytest.mark.parametrize("method", ["analytic", "stochastic", "accumulation"])
+def test_translating_occluder_blurs_its_shadow_like_accumulation_with_direct_maps(scene_path, method):
+    path = shadow_stage(scene_path(), occluder_samples=MOVING)
+    reference = render(path, "accumulation", samples=64, shadows="direct")
+    result = render(path, method, shadows="warped")
+    sharp = render(path, "accumulation", samples=1, shutter=(0.0, 0.0), shadows="direct")
+    err = rmse(result.rgba, reference.rgba)
+    assert err < 0.012, err      # measured 0.0029 (accumulation), 0.0070 (analytic), 0.0074 (stochastic)
+    assert rmse(sharp.rgba, reference.rgba) > 4 * err      # a sharp shadow would fail clearly
+    # the blurred shadow is wider and lighter than the sharp one
+    lum_ref, lum_sharp = luminance(reference), luminance(sharp)
+    lit = np.median(lum_ref)
+    penumbra = lambda lum: ((lum > 0.1 * lit) & (lum < 0.9 * lit)).sum()  # noqa: E731
+    assert penumbra(lum_ref) > 3 * penumbra(lum_sharp)
+
+
+def test_direct_and_warped_accumulation_agree_on_a_moving_occluder(scene_path):
+    path = shadow_stage(scene_path(), occluder_samples=MOVING)
+    direct = render(path, "accumulation", samples=16, shadows="direct")
+    warped = render(path, "accumulation", samples=16, shadows="warped", shadow_times=16)
+    assert rmse(direct.rgba, warped.rgba) < 0.003     # measured 0.0008
+    assert warped.stats["shadow_maps_warped"] == 16 and direct.stats["shadow_maps_rendered"] == 16
+    # more instants than map instants: maps are warped once at those and shared
+    shared = render(path, "accumulation", samples=16, shadows="warped", shadow_times=8)
+    assert shared.stats["shadow_maps_warped"] == 8
+    assert rmse(direct.rgba, shared.rgba) < 0.012     # measured 0.0072 (0.017 with 4 map instants)
+
+
+def test_a_moving_light_moves_the_shadow(scene_path):
+    path = shadow_stage(scene_path(), occluder_at=(0.0, 1.0, 0.0), light="sphere",
+                        light_samples={0.5: (-1.5, 3.0, 0.0), 1.5: (1.5, 3.0, 0.0)})
+    at_open = render(path, "accumulation", samples=1, shutter=(-0.5, -0.5))
+    at_close = render(path, "accumulation", samples=1, shutter=(0.5, 0.5))
+    lit = np.median(luminance(at_open))
+    xs = np.arange(RES[0])[None, :]
+    cx = [float((shadow_mask(r, lit) * xs).sum() / shadow_mask(r, lit).sum()) for r in (at_open, at_close)]
+    assert cx[0] - cx[1] > 5   # the light moves right, the shadow left (in pixels)
+    blurred = render(path, "analytic")
+    assert blurred.stats["shadow_maps_warped"] > 0
+    # the blurred shadow spreads between the two instants' shadows
+    mid = shadow_mask(blurred, lit) | ((luminance(blurred) < 0.9 * lit) & (blurred.rgba[..., 3] > 0.99))
+    cols = np.nonzero(mid.any(axis=0))[0]
+    assert cols.min() <= cx[1] and cols.max() >= cx[0]
+
+
+def test_area_light_casts_a_soft_shadow_that_warps_like_direct(scene_path):
+    still = shadow_stage(scene_path(), occluder_at=(0.0, 1.0, 0.0), light="rect", light_size=1.2)
+    unshadowed = luminance(render(still, "analytic", shadows="off"))
+    ground = unshadowed > 0.05
+
+    def penumbra(light_samples: int) -> int:
+        r = render(still, "analytic", light_samples=light_samples, shadows="direct")
+        vis = luminance(r)[ground] / unshadowed[ground]    # the shadow term alone
+        return int(((vis > 0.1) & (vis < 0.9)).sum())
+
+    assert penumbra(9) > 2 * penumbra(1)
+    moving = shadow_stage(scene_path(), occluder_samples=MOVING, light="rect", light_size=1.2)
+    soft = render(moving, "analytic", light_samples=9, shadows="direct")
+    soft_warped = render(moving, "analytic", light_samples=9, shadows="warped")
+    assert soft.stats["shadow_light_samples"] == [9] and soft_warped.stats["shadow_maps_warped"] > 0
+    assert rmse(soft_warped.rgba, soft.rgba) < 0.006   # measured 0.0036
+
+
+def test_shadow_enable_false_casts_none_and_costs_nothing(scene_path):
+    path = shadow_stage(scene_path(), occluder_samples=MOVING, shadows=False)
+    result = render(path)
+    off = render(path, shadows="off")
+    assert np.array_equal(result.rgba, off.rgba)
+    assert not any(k.startswith("shadow") for k in result.stats["time"])
+    assert "shadow_lights" not in result.stats
+    on = render(shadow_stage(scene_path(), occluder_samples=MOVING, shadows=True))
+    assert rmse(on.rgba, result.rgba) > 0.01   # the shadow was real where enabled
+
+
+def test_static_shadows_are_rendered_once(scene_path):
+    """Nothing moves in the light's view: one map serves the whole shutter, in every method."""
+    path = shadow_stage(scene_path())
+    for method in ("analytic", "accumulation"):
+        r = render(path, method, shutter=(-0.5, 0.5))
+        assert r.stats.get("shadow_maps_rendered", 0) == 1 and "shadow_maps_warped" not in r.stats

@@ -1,0 +1,164 @@
+"""Shadow-map lookups in shading (@wp.func only): depth comparison with bias and percentage-closer
+filtering, averaged over a light's samples and interpolated between the maps' instants.
+
+A *face* is one depth image seen from a light: orthographic (distant lights) or perspective
+(one fitted frustum, or the six faces of a cube). Its row in `Shading.shadow_faces` holds the
+face's rotation in the light's local frame (rows 0-8), the light sample's offset in that frame
+(9-11), the window (12-15: x0, y0, x1, y1 on the plane at distance 1, or in scene units when
+orthographic), the ortho flag (16) and the near depth (17). face_from_cam is built at the lookup's
+own time from the light table (the light's frame in camera space then), so a moving camera never
+shifts a shadow: maps are rigid with the light. Texel (i, j) of an S×S face covers window x in
+[x0 + i (x1-x0)/S, ...], y measured downwards from y1, as camera pixels are.
+
+Comparisons are averaged, never depths: a light's visibility at time u is the PCF comparison
+averaged over its M samples, linearly interpolated between the two maps whose instants bracket u
+(maps sit at (b + 0.5)/B of the shutter); over a time span it is the mean of point values.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from .kernel_types import Shading
+from .light_table import light_vec
+
+FACE_WIDTH = 18
+
+
+@wp.func
+def light_axes(sh: Shading, j: int, u: float) -> wp.mat33:
+    """Rows: light j's local x, y, z axes in camera space at shutter time u."""
+    x = wp.normalize(light_vec(sh, j, 10, u))
+    y = light_vec(sh, j, 13, u)
+    y = wp.normalize(y - wp.dot(y, x) * x)
+    z = wp.cross(x, y)
+    return wp.mat33(x[0], x[1], x[2], y[0], y[1], y[2], z[0], z[1], z[2])
+
+
+@wp.func
+def face_rotation(sh: Shading, f: int) -> wp.mat33:
+    r = sh.shadow_faces
+    return wp.mat33(r[f, 0], r[f, 1], r[f, 2], r[f, 3], r[f, 4], r[f, 5], r[f, 6], r[f, 7], r[f, 8])
+
+
+@wp.func
+def texel_lit(sh: Shading, f: int, i: int, j: int, depth: float) -> float:
+    s = sh.shadow_size
+    ii = wp.clamp(i, 0, s - 1)
+    jj = wp.clamp(j, 0, s - 1)
+    if depth <= sh.shadow_maps[f, jj, ii]:
+        return 1.0
+    return 0.0
+
+
+@wp.func
+def face_visibility(sh: Shading, f: int, axes: wp.mat33, origin: wp.vec3, p: wp.vec3, n: wp.vec3) -> float:
+    """Visibility of camera-space point p (normal n, facing the light) in face f of a light whose
+    frame is (axes, origin): in [0, 1], or -1 when p is outside the face (try the next face)."""
+    a = face_rotation(sh, f) * axes
+    sample = origin + wp.transpose(axes) * wp.vec3(sh.shadow_faces[f, 9], sh.shadow_faces[f, 10], sh.shadow_faces[f, 11])
+    q = a * (p - sample)
+    depth = -q[2]
+    x0 = sh.shadow_faces[f, 12]
+    y0 = sh.shadow_faces[f, 13]
+    x1 = sh.shadow_faces[f, 14]
+    y1 = sh.shadow_faces[f, 15]
+    ortho = sh.shadow_faces[f, 16] > 0.5
+    wx = q[0]
+    wy = q[1]
+    if not ortho:
+        if depth <= sh.shadow_faces[f, 17]:
+            return -1.0
+        wx = q[0] / depth
+        wy = q[1] / depth
+    if wx < x0 or wx > x1 or wy < y0 or wy > y1:
+        return -1.0
+    size = float(sh.shadow_size)
+    texel = (x1 - x0) / size
+    if not ortho:
+        texel = texel * depth
+    # normal offset, then a constant bias, both in texels at the receiver
+    qn = q + (a * n) * (sh.shadow_normal_bias * texel)
+    depth = -qn[2] - sh.shadow_bias * texel
+    wx = qn[0]
+    wy = qn[1]
+    if not ortho:
+        dn = wp.max(-qn[2], sh.shadow_faces[f, 17])
+        wx = qn[0] / dn
+        wy = qn[1] / dn
+    tx = (wx - x0) / (x1 - x0) * size - 0.5
+    ty = (y1 - wy) / (y1 - y0) * size - 0.5
+    r = sh.shadow_pcf
+    total = float(0.0)
+    for dy in range(-r, r + 1):
+        for dx in range(-r, r + 1):
+            fx = tx + float(dx)
+            fy = ty + float(dy)
+            i = int(wp.floor(fx))
+            j = int(wp.floor(fy))
+            ax = fx - float(i)
+            ay = fy - float(j)
+            total += (1.0 - ax) * (1.0 - ay) * texel_lit(sh, f, i, j, depth)
+            total += ax * (1.0 - ay) * texel_lit(sh, f, i + 1, j, depth)
+            total += (1.0 - ax) * ay * texel_lit(sh, f, i, j + 1, depth)
+            total += ax * ay * texel_lit(sh, f, i + 1, j + 1, depth)
+    return total / float((2 * r + 1) * (2 * r + 1))
+
+
+@wp.func
+def map_visibility(sh: Shading, first_face: int, num_faces: int, axes: wp.mat33, origin: wp.vec3, p: wp.vec3,
+                   n: wp.vec3) -> float:
+    """Visibility in the first face of a map that contains p (lit when none does: nothing that
+    casts a shadow was there)."""
+    for f in range(num_faces):
+        v = face_visibility(sh, first_face + f, axes, origin, p, n)
+        if v >= 0.0:
+            return v
+    return 1.0
+
+
+@wp.func
+def light_visibility_at(sh: Shading, j: int, u: float, p: wp.vec3, n: wp.vec3) -> float:
+    """Visibility of light j from p at shutter time u: mean over the light's samples, linear in
+    time between the maps' instants."""
+    first = sh.shadow_lights[j, 0]
+    if first < 0:
+        return 1.0
+    num_samples = sh.shadow_lights[j, 1]
+    num_faces = sh.shadow_lights[j, 2]
+    axes = light_axes(sh, j, u)
+    origin = light_vec(sh, j, 4, u)
+    times = sh.shadow_times
+    b0 = int(0)
+    b1 = int(0)
+    frac = float(0.0)
+    if times > 1:
+        x = wp.clamp(u, 0.0, 1.0) * float(times) - 0.5
+        b0 = wp.clamp(int(wp.floor(x)), 0, times - 1)
+        b1 = wp.min(b0 + 1, times - 1)
+        frac = wp.clamp(x - float(b0), 0.0, 1.0)
+    total = float(0.0)
+    for m in range(num_samples):
+        v = map_visibility(sh, first + (m * times + b0) * num_faces, num_faces, axes, origin, p, n)
+        if frac > 0.0 and b1 != b0:
+            v1 = map_visibility(sh, first + (m * times + b1) * num_faces, num_faces, axes, origin, p, n)
+            v = v + frac * (v1 - v)
+        total += v
+    return total / float(num_samples)
+
+
+@wp.func
+def light_visibility(sh: Shading, j: int, u: float, du: float, p: wp.vec3, n: wp.vec3) -> float:
+    """Mean visibility of light j over shutter times [u - du/2, u + du/2] (du = 0: the instant u),
+    sampled once per map instant the span covers."""
+    if sh.shadow_lights[j, 0] < 0:
+        return 1.0
+    steps = int(1)
+    if du > 0.0 and sh.shadow_times > 1:
+        steps = wp.clamp(int(wp.ceil(du * float(sh.shadow_times))), 1, sh.shadow_times)
+    if steps == 1:
+        return light_visibility_at(sh, j, u, p, n)
+    total = float(0.0)
+    for i in range(steps):
+        total += light_visibility_at(sh, j, u - 0.5 * du + du * (float(i) + 0.5) / float(steps), p, n)
+    return total / float(steps)

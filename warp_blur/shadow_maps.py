@@ -1,0 +1,634 @@
+"""Shadow maps in motion: per shadowing light, depth maps at the instants shading needs, rendered
+directly (the reference) or warped from a few key maps through a mesh of control points.
+
+Frames. A light's frame is rigid with the light (its USD transform: origin and local axes, in
+camera space at each instant), so a light that does not move in the world gives the same map
+whatever the camera does. Each light has faces fixed for the frame: orthographic along the light
+for distant lights; for sphere, disk and rect lights one perspective frustum fitted to the
+geometry when it all lies within 60° of one direction, else the six faces of a cube. Windows are
+fitted to the geometry at the probe instants (open, centre, close, and the keys).
+
+Area lights (sphere with a radius, disk, rect) are M point samples on the light, each with its own
+maps; shading averages the M depth comparisons (soft shadows). A sample's map is warped from the
+light centre's key maps (a moved light is the occluder moved the opposite way), or rendered
+directly in direct mode.
+
+Warping. Key maps are rendered at a few shutter instants (open and close, and more while the
+light-space motion between keys is more than a texel from linear). Each key texel knows the
+triangle and barycentrics it sees, so a grid of control points (every `grid`-th texel) follows the
+scene's own motion to any instant and light position. The grid's cells are warped as triangles
+(per target texel: key depth at the back-mapped source texel plus the interpolated depth change);
+cells that span a depth discontinuity or two objects are cut and their texels warped one by one
+with their own motion; the two keys bracketing the instant are warped and the nearer depth kept,
+so what one key hides the other shows. Depths are compared after warping, never averaged.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import warp as wp
+
+from .binning import TILE_SIZE, bin_entries, entry_pixel_bounds
+from .camera import Projection
+from .device_data import TriangleTables, make_bins, make_geometry, make_view
+from .lights import DISK, DISTANT, RECT, SPHERE
+from .log import warn_once
+from .parallel import launch_pixels
+from .shadow_lookup import FACE_WIDTH
+from .shadow_raster import render_shadow_texels, warp_texels
+
+FAR = 1.0e30
+#: cells whose key depths differ by more than this many cell widths are cut (depth discontinuity)
+JUMP_CELLS = 8.0
+#: a single fitted frustum is used when all geometry is within this angle of one direction
+MAX_FRUSTUM_HALF_ANGLE_COS = 0.5
+#: tile size (texels) of the warped triangles' bins: small, since control-point cells are small
+WARP_TILE = 8
+
+
+@dataclass(frozen=True)
+class ShadowOptions:
+    """mode: warped | direct | off; size: texels per face side; grid: control-point cells per side;
+    times: map instants over the shutter for the time-continuous methods; keys: most key maps per
+    light (warped); light_samples: samples of an area light; bias, normal_bias: texels; pcf:
+    filter radius in texels; memory_mb: budget of one frame's maps."""
+
+    mode: str = "warped"
+    size: int = 512
+    grid: int = 128
+    times: int = 8
+    keys: int = 5
+    light_samples: int = 1
+    bias: float = 1.0
+    normal_bias: float = 1.5
+    pcf: int = 0
+    memory_mb: float = 1024.0
+
+
+@dataclass
+class Sample:
+    """The scene at one shutter instant: (V, 3) float64 camera-space positions, (T,) visibility,
+    (NL, LIGHT_WIDTH) light table."""
+
+    positions: np.ndarray
+    tri_visible: np.ndarray
+    lights: np.ndarray
+
+
+@dataclass
+class Face:
+    """One depth image of a light: rotation from the light's local frame (rows: face axes),
+    window on the plane at distance 1 (scene units when orthographic), near depth."""
+
+    rotation: np.ndarray
+    window: tuple[float, float, float, float]
+    ortho: bool
+    near: float
+
+    def projection(self, size: int) -> Projection:
+        return Projection(self.ortho, self.window, self.near, FAR, size, size)
+
+
+@dataclass
+class LightLayout:
+    """A shadowing light's samples (light-local offsets, (M, 3)) and faces."""
+
+    row: int
+    kind: int
+    offsets: np.ndarray
+    faces: list[Face]
+    static: bool = True
+
+
+@dataclass
+class KeyMesh:
+    """A key face's control points (N nodes: key triangle, barycentrics, depth, source texel
+    position), mesh triangles as node triples (P, 3), and the cut cells' texels (n, with their
+    own triangle, barycentrics and depth)."""
+
+    node_tri: np.ndarray
+    node_bary: np.ndarray
+    node_depth: np.ndarray
+    node_src: np.ndarray
+    tri_nodes: np.ndarray
+    texel_xy: np.ndarray
+    texel_tri: np.ndarray
+    texel_bary: np.ndarray
+    texel_depth: np.ndarray
+
+
+@dataclass
+class ShadowData:
+    """Maps ready for shading: maps (N, S, S) float32, faces (N, FACE_WIDTH), lights (NL, 3) int32
+    [first map or -1, samples, faces], times B."""
+
+    maps: np.ndarray
+    faces: np.ndarray
+    lights: np.ndarray
+    times: int
+    size: int
+
+
+def light_frame(row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(origin (3,), axes (3, 3): rows = the light's local x, y, z in camera space) from a table row."""
+    origin = np.asarray(row[4:7], np.float64)
+    x = np.asarray(row[10:13], np.float64)
+    y = np.asarray(row[13:16], np.float64)
+    if np.linalg.norm(x) < 1e-30 or np.linalg.norm(y) < 1e-30:
+        z = -np.asarray(row[7:10], np.float64) if int(row[0]) in (RECT, DISK) else np.asarray(row[7:10], np.float64)
+        z = z / max(np.linalg.norm(z), 1e-30) if np.linalg.norm(z) > 0 else np.array([0.0, 0.0, 1.0])
+        x = perpendicular(z)
+        y = np.cross(z, x)
+    x = x / np.linalg.norm(x)
+    y = y - np.dot(y, x) * x
+    y = y / np.linalg.norm(y)
+    return origin, np.stack([x, y, np.cross(x, y)])
+
+
+def perpendicular(v: np.ndarray) -> np.ndarray:
+    """A unit vector perpendicular to unit v."""
+    a = np.array([1.0, 0.0, 0.0]) if abs(v[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    p = np.cross(v, a)
+    return p / np.linalg.norm(p)
+
+
+def sample_pattern(m: int) -> np.ndarray:
+    """(m, 2) points in [-1, 1]²: the centre for 1, a stratified grid for squares, else a
+    Fibonacci spiral in the unit disk."""
+    if m <= 1:
+        return np.zeros((1, 2))
+    n = int(round(np.sqrt(m)))
+    if n * n == m:
+        c = (np.arange(n) + 0.5) / n * 2 - 1
+        gx, gy = np.meshgrid(c, c)
+        return np.stack([gx.ravel(), gy.ravel()], axis=1)
+    k = np.arange(m)
+    r = np.sqrt((k + 0.5) / m)
+    phi = k * np.pi * (3 - np.sqrt(5))
+    return np.stack([r * np.cos(phi), r * np.sin(phi)], axis=1)
+
+
+def light_sample_offsets(row: np.ndarray, count: int, towards: np.ndarray) -> np.ndarray:
+    """(M, 3) light-local offsets of an area light's samples; `towards` is the light-local
+    direction to the geometry (a sphere light is sampled on the disk facing it)."""
+    kind = int(row[0])
+    if kind == RECT:
+        pts = sample_pattern(count)
+        w, h = np.linalg.norm(row[10:13]), np.linalg.norm(row[13:16])
+        return np.stack([pts[:, 0] * w, pts[:, 1] * h, np.zeros(len(pts))], axis=1)
+    if kind == DISK:
+        pts = sample_pattern(count)
+        if len(pts) > 1 and int(round(np.sqrt(count))) ** 2 == count:  # square grid -> disk (concentric map)
+            pts = concentric_disk(pts)
+        r = np.linalg.norm(row[10:13])
+        return np.stack([pts[:, 0] * r, pts[:, 1] * r, np.zeros(len(pts))], axis=1)
+    if kind == SPHERE and row[16] > 0:
+        pts = sample_pattern(count)
+        if len(pts) > 1 and int(round(np.sqrt(count))) ** 2 == count:
+            pts = concentric_disk(pts)
+        e1 = perpendicular(towards)
+        e2 = np.cross(towards, e1)
+        return float(row[16]) * (pts[:, :1] * e1 + pts[:, 1:2] * e2)
+    return np.zeros((1, 3))
+
+
+def concentric_disk(pts: np.ndarray) -> np.ndarray:
+    """Shirley's concentric map of [-1, 1]² onto the unit disk."""
+    a, b = pts[:, 0], pts[:, 1]
+    out = np.zeros_like(pts)
+    big_a = np.abs(a) >= np.abs(b)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(big_a, a, b)
+        phi = np.where(big_a, (np.pi / 4) * np.where(a != 0, b / a, 0), np.pi / 2 - (np.pi / 4) * np.where(b != 0, a / b, 0))
+    out[:, 0] = r * np.cos(phi)
+    out[:, 1] = r * np.sin(phi)
+    return out
+
+
+def cube_faces(size: int) -> list[Face]:
+    """Six 90° faces looking down ±x, ±y, ±z of the light's frame (windows padded by a texel)."""
+    pad = 1.0 + 2.0 / size
+    faces = []
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            z = np.zeros(3)
+            z[axis] = -sign   # the face looks down its -z: towards sign * axis
+            x = perpendicular(z)
+            faces.append(Face(np.stack([x, np.cross(z, x), z]), (-pad, -pad, pad, pad), False, 0.0))
+    return faces
+
+
+def fit_faces(kind: int, local: np.ndarray, size: int) -> list[Face]:
+    """Faces of a light from light-local points (N, 3) of the geometry (all samples, probes)."""
+    if kind == DISTANT:
+        lo, hi = local[:, :2].min(axis=0), local[:, :2].max(axis=0)
+        pad = 0.02 * float((hi - lo).max()) + 1e-6
+        return [Face(np.eye(3), (lo[0] - pad, lo[1] - pad, hi[0] + pad, hi[1] + pad), True, -FAR)]
+    dist = np.linalg.norm(local, axis=1)
+    scale = float(dist.max()) if len(dist) else 1.0
+    use = dist > 1e-9 * scale
+    dirs = local[use] / dist[use, None]
+    mean = dirs.sum(axis=0)
+    if np.linalg.norm(mean) > 1e-9 and (dirs @ (mean / np.linalg.norm(mean))).min() > MAX_FRUSTUM_HALF_ANGLE_COS:
+        axis = mean / np.linalg.norm(mean)
+        z = -axis
+        x = perpendicular(z)
+        rot = np.stack([x, np.cross(z, x), z])
+        q = local[use] @ rot.T
+        depth = -q[:, 2]
+        wx, wy = q[:, 0] / depth, q[:, 1] / depth
+        pad = 0.03 * max(float(wx.max() - wx.min()), float(wy.max() - wy.min())) + 1e-6
+        near = max(0.5 * float(depth.min()), 1e-6 * scale)
+        return [Face(rot, (wx.min() - pad, wy.min() - pad, wx.max() + pad, wy.max() + pad), False, near)]
+    # a cube, without the faces that no geometry lies in
+    faces = []
+    for f in cube_faces(size):
+        q = local[use] @ f.rotation.T
+        depth = -q[:, 2]
+        inside = (depth > 0) & (np.abs(q[:, 0]) <= depth * f.window[2]) & (np.abs(q[:, 1]) <= depth * f.window[2])
+        if inside.any():
+            f.near = 1e-5 * scale
+            faces.append(f)
+    return faces
+
+
+class ShadowMaps:
+    """The shadow maps of one frame: built on demand for the instants shading asks for."""
+
+    def __init__(self, tables: TriangleTables, tri_vertices: np.ndarray, tri_object: np.ndarray,
+                 materials_lit: bool, sample_at: Callable[[float], Sample], options: ShadowOptions,
+                 device: str, threads: int | None, timings: dict, counters: dict) -> None:
+        self.tables = tables
+        self.tri_vertices = tri_vertices
+        self.tri_object = tri_object
+        self.options = options
+        self.device = device
+        self.threads = threads
+        self.timings = timings
+        self.counters = counters
+        self._samples: dict[float, Sample] = {}
+        self._sample_fn = sample_at
+        self._keys: dict[tuple[int, int], list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        self._key_dev: dict[tuple[int, int], wp.array] = {}
+        self._static_data: ShadowData | None = None
+        self._meshes: dict = {}
+        self._binned: ShadowData | None = None
+        self.size = options.size
+        self.layouts: list[LightLayout] = []
+        centre = self.sample(0.5)
+        if options.mode == "off" or not materials_lit or len(tri_vertices) == 0:
+            self.num_lights = len(centre.lights)
+            return
+        self.num_lights = len(centre.lights)
+        rows = [j for j in range(len(centre.lights)) if centre.lights[j, 17] > 0.5]
+        if not rows:
+            return
+        t0 = time.perf_counter()
+        self._plan(rows)
+        self._add_time("shadow_setup", time.perf_counter() - t0)
+
+    # ------------------------------------------------------------------------------ layout
+    @property
+    def active(self) -> bool:
+        return bool(self.layouts)
+
+    @property
+    def static(self) -> bool:
+        return all(lay.static for lay in self.layouts)
+
+    def sample(self, u: float) -> Sample:
+        u = float(u)
+        if u not in self._samples:
+            if len(self._samples) > 16:
+                self._samples.clear()
+            self._samples[u] = self._sample_fn(u)
+        return self._samples[u]
+
+    def _add_time(self, name: str, dt: float) -> None:
+        self.timings[name] = self.timings.get(name, 0.0) + dt
+
+    def _count(self, name: str, n: int) -> None:
+        self.counters[name] = self.counters.get(name, 0) + n
+
+    def _used_vertices(self, s: Sample) -> np.ndarray:
+        tris = self.tri_vertices[s.tri_visible] if len(s.tri_visible) else self.tri_vertices
+        return s.positions[np.unique(tris.ravel())] if len(tris) else np.zeros((0, 3))
+
+    def _local(self, j: int, s: Sample) -> np.ndarray:
+        origin, axes = light_frame(s.lights[j])
+        return (self._used_vertices(s) - origin) @ axes.T
+
+    def _plan(self, rows: list[int]) -> None:
+        o = self.options
+        probes = [self.sample(u) for u in (0.0, 0.5, 1.0)]
+        for j in rows:
+            row = probes[1].lights[j]
+            kind = int(row[0])
+            locs = [self._local(j, s) for s in probes]
+            allp = np.concatenate(locs)
+            if len(allp) == 0:
+                continue
+            towards = allp.mean(axis=0)
+            towards = towards / max(np.linalg.norm(towards), 1e-30) if np.linalg.norm(towards) > 0 else np.array([0, 0, -1.0])
+            soft = kind in (RECT, DISK) or (kind == SPHERE and row[16] > 0)
+            offsets = light_sample_offsets(row, o.light_samples if soft else 1, towards)
+            pts = np.concatenate([allp - off for off in offsets]) if len(offsets) > 1 else allp
+            faces = fit_faces(kind, pts, self.size)
+            extent = float(np.abs(allp).max()) + 1.0
+            static = all(a.shape == locs[0].shape and np.abs(a - locs[0]).max(initial=0.0) <= 1e-9 * extent
+                         for a in locs[1:])
+            static &= all(np.array_equal(s.tri_visible, probes[0].tri_visible) for s in probes[1:])
+            self.layouts.append(LightLayout(j, kind, offsets, faces, static))
+        self.counters["shadow_lights"] = len(self.layouts)
+        self.counters["shadow_light_samples"] = [len(lay.offsets) for lay in self.layouts]
+        self.counters["shadow_faces"] = [len(lay.faces) for lay in self.layouts]
+        self.counters["shadow_map_size"] = self.size
+        self.counters["shadow_mode"] = o.mode
+
+    def times_for(self, requested: int) -> int:
+        """Map instants for the time-continuous methods: 1 when nothing moves in any light's view,
+        else `requested`, halved while one frame's maps exceed the memory budget."""
+        if self.static:
+            return 1
+        b = max(requested, 1)
+        per_time = sum(len(lay.offsets) * len(lay.faces) for lay in self.layouts) * self.size ** 2 * 4
+        while b > 2 and per_time * b > self.options.memory_mb * 2**20:
+            b //= 2
+        if b < requested:
+            warn_once("shadow-budget", f"shadow maps: {b} instants instead of {requested} to stay within "
+                                       f"{self.options.memory_mb:g} MB")
+        return b
+
+    # ------------------------------------------------------------------------------ transforms
+    def _face_transform(self, lay: LightLayout, face: Face, m: int, s: Sample) -> tuple[np.ndarray, np.ndarray]:
+        """(A (3, 3), t (3,)) with face-space q = A p + t for light sample m at sample s."""
+        origin, axes = light_frame(s.lights[lay.row])
+        a = face.rotation @ axes
+        o = origin + lay.offsets[m] @ axes
+        return a, -a @ o
+
+    # ------------------------------------------------------------------------------ rendering
+    def _render_face(self, lay: LightLayout, face: Face, m: int, s: Sample):
+        """Depth (S*S,), triangle (S*S,) and barycentrics (S*S, 2) of one face, rendered."""
+        a, t = self._face_transform(lay, face, m, s)
+        q = s.positions @ a.T + t
+        proj = face.projection(self.size)
+        tris = np.nonzero(s.tri_visible)[0].astype(np.int32) if len(s.tri_visible) else np.zeros(0, np.int32)
+        k = np.zeros(len(tris), np.int32)
+        boxes, keep = entry_pixel_bounds(proj, q[None], self.tri_vertices, tris, k, k, 1.0)
+        bins = bin_entries(proj, boxes, keep, TILE_SIZE)
+        geo = make_geometry(self.tables, q[None], None, tris, k, k)
+        view = make_view(proj, 1, bins, TILE_SIZE)
+        view.near = face.near
+        b = make_bins(bins, self.device)
+        n = self.size * self.size
+        depth = wp.empty(n, dtype=float, device=self.device)
+        tri = wp.empty(n, dtype=int, device=self.device)
+        bary = wp.empty(n, dtype=wp.vec2, device=self.device)
+        launch_pixels(render_shadow_texels, n, lambda first, _n: [view, geo, b, first, depth, tri, bary],
+                      self.device, self.threads)
+        return depth, tri, bary
+
+    def _key_times(self, lay: LightLayout) -> list[float]:
+        """Key instants: open and close, bisected while the light-space motion between keys is
+        more than a texel from linear (up to `keys` keys)."""
+        keys = [0.0, 1.0]
+        texel = self._texel_size(lay)
+        while 2 * len(keys) - 1 <= self.options.keys:
+            worst = 0.0
+            for u0, u1 in zip(keys, keys[1:]):
+                a, b, mid = (self._local(lay.row, self.sample(u)) for u in (u0, u1, 0.5 * (u0 + u1)))
+                if a.shape == b.shape == mid.shape and len(a):
+                    dev = np.linalg.norm(mid - 0.5 * (a + b), axis=1)
+                    worst = max(worst, float((dev / texel(mid)).max()))
+            if worst <= 1.0:
+                break
+            keys = sorted(set(keys) | {0.5 * (u0 + u1) for u0, u1 in zip(keys, keys[1:])})
+        return keys
+
+    def _texel_size(self, lay: LightLayout) -> Callable[[np.ndarray], np.ndarray]:
+        """World size of a texel at light-local points (per point)."""
+        face = lay.faces[0]
+        w = (face.window[2] - face.window[0]) / self.size
+        if face.ortho:
+            return lambda p: np.full(len(p), w)
+        return lambda p: np.maximum(np.linalg.norm(p, axis=1), 1e-12) * w
+
+    def _key(self, lay: LightLayout, ki: int, key_time: float):
+        """Key maps of a light (centre sample) at a key instant: per face (depth, tri, bary) numpy."""
+        ident = (lay.row, ki)
+        if ident not in self._keys:
+            t0 = time.perf_counter()
+            s = self.sample(key_time)
+            out = []
+            for face in lay.faces:
+                d, tr, ba = self._render_face(lay, face, self._centre(lay), s)
+                out.append((d.numpy().reshape(self.size, self.size), tr.numpy().reshape(self.size, self.size),
+                            ba.numpy().reshape(self.size, self.size, 2)))
+            self._keys[ident] = out
+            self._key_dev[ident] = wp.array(np.stack([o[0] for o in out]), dtype=float, device=self.device)
+            self._count("shadow_key_maps", len(lay.faces))
+            self._add_time("shadow_render", time.perf_counter() - t0)
+        return self._keys[ident], self._key_dev[ident]
+
+    def _centre(self, lay: LightLayout) -> int:
+        """The key maps' light position: the sample nearest the light's centre (its offset is
+        applied; the warp accounts for the difference to every other sample)."""
+        return int(np.argmin(np.linalg.norm(lay.offsets, axis=1)))
+
+    # ------------------------------------------------------------------------------ warping
+    def _key_mesh(self, lay: LightLayout, ident: tuple[int, int], fk: int) -> KeyMesh:
+        """What a key face's warp needs whatever the target (cached): control points at every
+        step-th texel with the surface they see, the mesh triangles that do not cross a depth
+        discontinuity or two objects, and the texels of the cut cells."""
+        cache_id = (ident, fk)
+        if cache_id in self._meshes:
+            return self._meshes[cache_id]
+        kdepth, ktri, kbary = self._keys[ident][fk]
+        kface = lay.faces[fk]
+        s = self.size
+        step = max(1, s // max(1, min(self.options.grid, s)))
+        g_idx = np.unique(np.minimum(np.arange(0, s + step, step), s - 1))
+        ng = len(g_idx)
+        gy, gx = np.meshgrid(g_idx, g_idx, indexing="ij")
+        ntri = ktri[gy, gx].ravel()
+        kz = kdepth[gy, gx].ravel()
+        valid = ntri >= 0
+        obj = np.where(valid, self.tri_object[np.maximum(ntri, 0)], -1)
+        texel_w = (kface.window[2] - kface.window[0]) / s
+        tau = JUMP_CELLS * step * texel_w * (np.ones_like(kz) if kface.ortho else np.where(valid, kz, 0.0))
+        i00 = (np.arange(ng - 1)[:, None] * ng + np.arange(ng - 1)[None, :]).ravel()
+        corners = np.stack([i00, i00 + 1, i00 + ng + 1, i00 + ng], axis=1)          # (C, 4): 00 10 11 01
+        tri_nodes = np.concatenate([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]])   # (2C, 3)
+        good = valid[tri_nodes].all(axis=1) & (obj[tri_nodes] == obj[tri_nodes[:, :1]]).all(axis=1)
+        zt = np.where(valid[tri_nodes], kz[tri_nodes], 0.0)
+        good &= (zt.max(axis=1) - zt.min(axis=1)) <= tau[tri_nodes].min(axis=1)
+        ncell = len(corners)
+        cut = ~(good[:ncell] & good[ncell:]) & valid[corners].any(axis=1)
+        # texels of cut cells (a cell spans its corner texels inclusive)
+        cut_grid = cut.reshape(ng - 1, ng - 1)
+        mask = np.zeros((s + step, s + step), bool)
+        mask[:(ng - 1) * step, :(ng - 1) * step] = np.kron(cut_grid, np.ones((step, step), bool))
+        mask[1:, :] |= mask[:-1, :].copy()
+        mask[:, 1:] |= mask[:, :-1].copy()
+        mask = mask[:s, :s] & (ktri >= 0)
+        ty, tx = np.nonzero(mask)
+        mesh = KeyMesh(
+            node_tri=ntri, node_bary=kbary[gy, gx].reshape(-1, 2), node_depth=kz,
+            node_src=np.stack([gx.ravel() + 0.5, gy.ravel() + 0.5], axis=1), tri_nodes=tri_nodes[good],
+            texel_xy=np.stack([tx, ty], axis=1), texel_tri=ktri[ty, tx], texel_bary=kbary[ty, tx],
+            texel_depth=kdepth[ty, tx])
+        self._meshes[cache_id] = mesh
+        return mesh
+
+    def _warp_prims(self, lay: LightLayout, ident: tuple[int, int], target: Sample, a: np.ndarray,
+                    t: np.ndarray, tface: Face):
+        """Warped triangles from one key's faces into a target face: (src (P, 3, 2), dst (P, 3, 2),
+        dz (P, 3), key face (P,)), and the number of control points that moved."""
+        s = self.size
+        proj = tface.projection(s)
+        tv = self.tri_vertices
+        srcs, dsts, dzs, keys = [], [], [], []
+        num_cp = 0
+
+        def motion(tri: np.ndarray, bary: np.ndarray):
+            """Target texel coords (N, 2), depth (N,) and validity of key surface points."""
+            wb, wc = bary[:, 0:1], bary[:, 1:2]
+            v = tv[np.maximum(tri, 0)]
+            p = (1 - wb - wc) * target.positions[v[:, 0]] + wb * target.positions[v[:, 1]] + wc * target.positions[v[:, 2]]
+            q = p @ a.T + t
+            depth = -q[:, 2]
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                xy = proj.project(q)
+                ok = np.isfinite(xy).all(axis=1) & (tri >= 0) & (np.abs(xy) < 4 * s).all(axis=1)
+            if not tface.ortho:
+                ok &= depth > tface.near
+            return xy, depth, ok
+
+        for fk in range(len(lay.faces)):
+            km = self._key_mesh(lay, ident, fk)
+            xy, depth, ok = motion(km.node_tri, km.node_bary)
+            num_cp += int((km.node_tri >= 0).sum())
+            tn = km.tri_nodes[ok[km.tri_nodes].all(axis=1)]
+            if len(tn):
+                srcs.append(km.node_src[tn])
+                dsts.append(xy[tn])
+                dzs.append((depth - km.node_depth)[tn])
+                keys.append(np.full(len(tn), fk, np.int32))
+            if len(km.texel_tri):   # cut cells: texels warp one by one with their own motion
+                pxy, pdepth, pok = motion(km.texel_tri, km.texel_bary)
+                txy = km.texel_xy[pok].astype(np.float64)
+                shift = pxy[pok] - (txy + 0.5)
+                pdz = (pdepth - km.texel_depth)[pok]
+                c = np.stack([txy, txy + (1, 0), txy + (1, 1), txy + (0, 1)], axis=1)       # (n, 4, 2)
+                for tri_c in ([0, 1, 2], [0, 2, 3]):
+                    srcs.append(c[:, tri_c])
+                    dsts.append(c[:, tri_c] + shift[:, None])
+                    dzs.append(np.repeat(pdz[:, None], 3, axis=1))
+                    keys.append(np.full(len(txy), fk, np.int32))
+                num_cp += len(txy)
+        cat = lambda xs, shape: np.concatenate(xs) if xs else np.zeros(shape)  # noqa: E731
+        return (cat(srcs, (0, 3, 2)), cat(dsts, (0, 3, 2)), cat(dzs, (0, 3)), cat(keys, (0,)).astype(np.int32),
+                num_cp)
+
+    def _warp_face(self, lay: LightLayout, fi: int, m: int, u: float, keys: list[float]) -> np.ndarray:
+        """(S, S) map of light sample m, face fi at shutter time u, warped from the bracketing keys."""
+        s = self.size
+        target = self.sample(u)
+        tface = lay.faces[fi]
+        a, t = self._face_transform(lay, tface, m, target)
+        hi = int(np.searchsorted(keys, u, side="left"))
+        lo = max(hi - 1, 0)
+        hi = min(hi, len(keys) - 1)
+        out = wp.full(s * s, wp.inf, dtype=float, device=self.device)
+        proj = tface.projection(s)
+        for ki in sorted({lo, hi}):
+            _key, key_dev = self._key(lay, ki, keys[ki])
+            t0 = time.perf_counter()
+            src, dst, dz, kf, ncp = self._warp_prims(lay, (lay.row, ki), target, a, t, tface)
+            self._count("shadow_control_points", ncp)
+            boxes = np.concatenate([dst.min(axis=1), dst.max(axis=1)], axis=1) if len(dst) else np.zeros((0, 4))
+            keep = np.isfinite(boxes).all(axis=1) & (boxes[:, 2] >= 0) & (boxes[:, 3] >= 0) & (boxes[:, 0] <= s) \
+                & (boxes[:, 1] <= s)
+            bins = bin_entries(proj, boxes, keep, WARP_TILE)
+            dev = self.device
+            args = [s, bins.tiles_x, WARP_TILE, key_dev,
+                    wp.array(np.ascontiguousarray(src.reshape(-1, 2), np.float32) if len(src) else np.zeros((1, 2), np.float32), dtype=wp.vec2, device=dev),
+                    wp.array(np.ascontiguousarray(dst.reshape(-1, 2), np.float32) if len(dst) else np.zeros((1, 2), np.float32), dtype=wp.vec2, device=dev),
+                    wp.array(np.ascontiguousarray(dz, np.float32) if len(dz) else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=dev),
+                    wp.array(kf if len(kf) else np.zeros(1, np.int32), dtype=int, device=dev),
+                    wp.array(bins.tile_offsets, dtype=int, device=dev),
+                    wp.array(bins.tile_entries if len(bins.tile_entries) else np.zeros(1, np.int32), dtype=int, device=dev)]
+            launch_pixels(warp_texels, s * s, lambda first, _n: args + [first, out], dev, self.threads)
+            self._add_time("shadow_warp", time.perf_counter() - t0)
+        return out.numpy().reshape(s, s)
+
+    # ------------------------------------------------------------------------------ assembly
+    def data(self, times: list[float]) -> ShadowData | None:
+        """Maps for the given shutter instants (B = len(times)); None without shadowing lights.
+        Static shadows are built once (at the shutter centre) and serve every instant."""
+        if not self.active:
+            return None
+        if self.static:
+            if self._static_data is None:
+                self._static_data = self._build([0.5], direct=True)
+            return self._static_data
+        return self._build(times, direct=self.options.mode == "direct")
+
+    def data_for_instant(self, u: float, num_instants: int, requested_times: int) -> ShadowData | None:
+        """Maps for a sharp instant u of a frame shading `num_instants` instants. Direct mode (the
+        reference) renders maps at u itself; warped mode warps maps to u, or, when the frame has
+        more instants than `requested_times`, warps maps once at those instants and every instant
+        interpolates their comparisons (as stochastic and analytic do)."""
+        if not self.active or self.static or self.options.mode == "direct" or num_instants <= requested_times:
+            return self.data([u])
+        if self._binned is None:
+            b = self.times_for(requested_times)
+            self._binned = self.data([(i + 0.5) / b for i in range(b)])
+        return self._binned
+
+    def _build(self, times: list[float], direct: bool) -> ShadowData:
+        t_start = time.perf_counter()
+        s = self.size
+        total = sum(len(lay.offsets) * len(lay.faces) for lay in self.layouts) * len(times)
+        maps = np.empty((total, s, s), np.float32)
+        faces = np.zeros((total, FACE_WIDTH), np.float32)
+        info = np.full((max(self.num_lights, 1), 3), -1, np.int32)
+        idx = 0
+        for lay in self.layouts:
+            info[lay.row] = (idx, len(lay.offsets), len(lay.faces))
+            keys = None if (direct or lay.static) else self._key_times(lay)
+            if keys is not None:
+                self.counters["shadow_keys"] = max(self.counters.get("shadow_keys", 0), len(keys))
+            for m in range(len(lay.offsets)):
+                for u in times:
+                    target = self.sample(0.5 if lay.static else u)
+                    for fi, face in enumerate(lay.faces):
+                        if keys is None:
+                            t0 = time.perf_counter()
+                            maps[idx] = self._render_face(lay, face, m, target)[0].numpy().reshape(s, s)
+                            self._add_time("shadow_render", time.perf_counter() - t0)
+                            self._count("shadow_maps_rendered", 1)
+                        else:
+                            maps[idx] = self._warp_face(lay, fi, m, u, keys)
+                            self._count("shadow_maps_warped", 1)
+                        faces[idx, 0:9] = face.rotation.ravel()
+                        faces[idx, 9:12] = lay.offsets[m]
+                        faces[idx, 12:16] = face.window
+                        faces[idx, 16] = 1.0 if face.ortho else 0.0
+                        faces[idx, 17] = face.near if not face.ortho else -FAR
+                        idx += 1
+        self._add_time("shadows", time.perf_counter() - t_start)
+        return ShadowData(maps, faces, info, len(times), s)
+
+
+def lit_materials(material_table: np.ndarray, tri_material: np.ndarray) -> bool:
+    """True when some triangle's material responds to lights (shadows can change a pixel)."""
+    if len(tri_material) == 0:
+        return False
+    rows = material_table[np.unique(tri_material)]
+    return bool(((rows[:, 10] > 0.5) | (np.abs(rows[:, 0:3]).sum(axis=1) > 0) | (np.abs(rows[:, 6:9]).sum(axis=1) > 0)).any())

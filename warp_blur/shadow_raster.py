@@ -1,0 +1,79 @@
+"""Shadow-map kernels: rendering a face from the light (the sharp rasterizer's visibility, seen
+from the light) and warping a key face to another instant or light position through a mesh of
+control points (gather per texel over the warped triangles binned to its tile).
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from .kernel_types import Bins, Geometry, View
+from .raster import nearest_entry, pixel_tile
+from .rays import pixel_ray_direction, pixel_ray_origin
+
+
+@wp.kernel(enable_backward=False)
+def render_shadow_texels(view: View, geo: Geometry, bins: Bins, first_pixel: int,
+                         # outputs
+                         depth: wp.array(dtype=float), tri: wp.array(dtype=int), bary: wp.array(dtype=wp.vec2)):
+    """Per texel of a face (geometry already in face space, static entries): the nearest depth
+    along the face's view axis (inf where nothing is), the triangle seen and its barycentrics of
+    vertices b and c (the warp's control points follow that surface point)."""
+    pix = first_pixel + wp.tid()
+    px = pix % view.width
+    py = pix // view.width
+    x = float(px) + 0.5
+    y = float(py) + 0.5
+    o = pixel_ray_origin(view, x, y)
+    d = pixel_ray_direction(view, x, y)
+    e, _alpha, hit = nearest_entry(view, geo, bins, pixel_tile(view, px, py), x, y, o, d, 0.0)
+    if e < 0:
+        depth[pix] = wp.inf
+        tri[pix] = -1
+        bary[pix] = wp.vec2(0.0, 0.0)
+    else:
+        depth[pix] = hit[1]
+        tri[pix] = geo.entry_tri[e]
+        bary[pix] = wp.vec2(hit[2], hit[3])
+
+
+@wp.kernel(enable_backward=False)
+def warp_texels(size: int, tiles_x: int, tile_size: int, key_depth: wp.array3d(dtype=float),
+                prim_src: wp.array(dtype=wp.vec2), prim_dst: wp.array(dtype=wp.vec2),
+                prim_dz: wp.array(dtype=wp.vec3), prim_key: wp.array(dtype=int),
+                tile_offsets: wp.array(dtype=int), tile_prims: wp.array(dtype=int), first_pixel: int,
+                # outputs
+                depth: wp.array(dtype=float)):
+    """depth[texel] = min(depth[texel], the nearest over the warped triangles covering the texel
+    centre of (key depth at the back-mapped source texel + the interpolated depth change)); start
+    from inf: a texel where no triangle lands stays inf (nothing known to cast a shadow there).
+
+    Triangle i has source positions prim_src[3i..3i+2] (texels of key face prim_key[i]), target
+    positions prim_dst[3i..3i+2] (texels of the target face) and depth changes prim_dz[i]."""
+    pix = first_pixel + wp.tid()
+    px = pix % size
+    py = pix // size
+    x = float(px) + 0.5
+    y = float(py) + 0.5
+    tile = (py // tile_size) * tiles_x + px // tile_size
+    best = depth[pix]   # min with what other keys already put here
+    for k in range(tile_offsets[tile], tile_offsets[tile + 1]):
+        i = tile_prims[k]
+        a = prim_dst[3 * i]
+        b = prim_dst[3 * i + 1]
+        c = prim_dst[3 * i + 2]
+        den = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+        if den != 0.0:
+            wb = ((x - a[0]) * (c[1] - a[1]) - (y - a[1]) * (c[0] - a[0])) / den
+            wc = ((b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0])) / den
+            wa = 1.0 - wb - wc
+            tol = -1.0e-5
+            if wa >= tol and wb >= tol and wc >= tol:
+                src = wa * prim_src[3 * i] + wb * prim_src[3 * i + 1] + wc * prim_src[3 * i + 2]
+                sx = wp.clamp(int(wp.floor(src[0])), 0, size - 1)
+                sy = wp.clamp(int(wp.floor(src[1])), 0, size - 1)
+                dz = prim_dz[i]
+                z = key_depth[prim_key[i], sy, sx] + wa * dz[0] + wb * dz[1] + wc * dz[2]
+                if z < best:
+                    best = z
+    depth[pix] = best
