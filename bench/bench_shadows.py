@@ -37,9 +37,12 @@ def main() -> None:
     ap.add_argument("--resolution", default="320x240")
     ap.add_argument("--frame", type=float, default=6)
     ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--scene", default=os.path.join(SCENES, "shadows.usda"))
+    ap.add_argument("--no-methods", action="store_true", help="skip the methods table")
     args = ap.parse_args()
     res = tuple(int(x) for x in args.resolution.split("x"))
-    scene = os.path.join(SCENES, "shadows.usda")
+    scene = args.scene
+    tag = os.path.splitext(os.path.basename(scene))[0]
     sizes = (256, 512) if args.quick else (256, 512, 1024, 2048)
     grids = (32, 128) if args.quick else (16, 32, 64, 128, 256, 512)
     samples = (1, 5) if args.quick else (1, 5, 9, 16)
@@ -77,24 +80,26 @@ def main() -> None:
 
     # the methods with shadows: accumulation's direct mode renders a map per instant
     method_rows = []
-    for method, knobs in tqdm([("accumulation", dict(samples=64)), ("stochastic", dict(samples=64)),
-                               ("analytic", {})], desc="methods", unit="run"):
+    method_cases = [] if args.no_methods else [("accumulation", dict(samples=64)), ("stochastic", dict(samples=64)),
+                                               ("analytic", {})]
+    for method, knobs in tqdm(method_cases, desc="methods", unit="run"):
         for mode in ("direct", "warped", "off"):
             settings = wb.RenderSettings(method=method, aovs=(), shadows=mode, **knobs)
             seconds, result = run(wb.Renderer(scene, resolution=res, settings=settings), args.frame, args.repeats)
             method_rows.append({"method": method, "shadows": mode, "frame_s": seconds,
                                 "shadow_s": result.stats["time"].get("shadows", 0.0),
                                 "maps": result.stats.get("shadow_maps_rendered", 0) + result.stats.get("shadow_maps_warped", 0)})
-    print(f"\nMethods with shadows (defaults: 512² maps, 8 map instants, 1 light sample)")
-    print(table(method_rows, ["method", "shadows", "maps", "shadow_s", "frame_s"]))
+    if method_rows:
+        print(f"\nMethods with shadows (defaults: 512² maps, 8 map instants, 1 light sample)")
+        print(table(method_rows, ["method", "shadows", "maps", "shadow_s", "frame_s"]))
 
     os.makedirs(OUT, exist_ok=True)
-    with open(os.path.join(OUT, "shadows.csv"), "w", newline="") as f:
+    with open(os.path.join(OUT, f"shadows_{tag}.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=columns)
         w.writeheader()
         for r in rows:
             w.writerow({c: r.get(c, "") for c in columns})
-    save("shadows.json", {"cases": rows, "methods": method_rows, "resolution": res, "frame": args.frame})
+    save(f"shadows_{tag}.json", {"cases": rows, "methods": method_rows, "resolution": res, "frame": args.frame})
     try:
         import matplotlib
         matplotlib.use("Agg")
@@ -108,10 +113,10 @@ def main() -> None:
         ax.set_ylabel("RMSE warped vs direct")
         ax.legend(fontsize=7)
         fig.tight_layout()
-        fig.savefig(os.path.join(OUT, "shadows.png"), dpi=120)
+        fig.savefig(os.path.join(OUT, f"shadows_{tag}.png"), dpi=120)
     except ImportError:
         print("(matplotlib not installed: no plot)")
-    print(f"\nwrote {os.path.join(OUT, 'shadows.csv')}, shadows.json, shadows.png")
+    print(f"\nwrote {OUT}/shadows_{tag}.csv, .json, .png")
 
 
 if __name__ == "__main__":

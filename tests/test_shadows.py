@@ -126,7 +126,7 @@ def test_a_moving_light_moves_the_shadow(scene_path):
     xs = np.arange(RES[0])[None, :]
     cx = [float((shadow_mask(r, lit) * xs).sum() / shadow_mask(r, lit).sum()) for r in (at_open, at_close)]
     assert cx[0] - cx[1] > 5   # the light moves right, the shadow left (in pixels)
-    blurred = render(path, "analytic")
+    blurred = render(path, "analytic", shadows="warped")
     assert blurred.stats["shadow_maps_warped"] > 0
     # the blurred shadow spreads between the two instants' shadows
     mid = shadow_mask(blurred, lit) | ((luminance(blurred) < 0.9 * lit) & (blurred.rgba[..., 3] > 0.99))
@@ -161,6 +161,13 @@ def test_shadow_enable_false_casts_none_and_costs_nothing(scene_path):
     assert "shadow_lights" not in result.stats
     on = render(shadow_stage(scene_path(), occluder_samples=MOVING, shadows=True))
     assert rmse(on.rgba, result.rgba) > 0.01   # the shadow was real where enabled
+
+
+def test_auto_mode_renders_directly_except_for_accumulation(scene_path):
+    path = shadow_stage(scene_path(), occluder_samples=MOVING)
+    assert render(path, "analytic").stats["shadow_mode"] == "direct"
+    acc = render(path, "accumulation", samples=16)
+    assert acc.stats["shadow_mode"] == "warped" and acc.stats["shadow_maps_warped"] == 8   # shared instants
 
 
 def test_static_shadows_are_rendered_once(scene_path):

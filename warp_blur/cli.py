@@ -48,8 +48,9 @@ def _build_parser() -> argparse.ArgumentParser:
     r.add_argument("--spatial-samples", type=int, default=1, help="n -> n×n sub-pixel positions")
     r.add_argument("--threads", type=int)
     sg = r.add_argument_group("shadows")
-    sg.add_argument("--shadows", default="warped", choices=["warped", "direct", "off"],
-                    help="shadow maps warped from key maps, rendered per instant (reference), or none")
+    sg.add_argument("--shadows", default="auto", choices=["auto", "warped", "direct", "off"],
+                    help="shadow maps warped from key maps, rendered per instant (reference), none, or auto "
+                         "(direct, warped for accumulation)")
     sg.add_argument("--shadow-map-size", type=int, help="texels per shadow-map side (power of two; 512)")
     sg.add_argument("--light-samples", type=int, help="point samples per area light: soft shadows (1)")
     sg.add_argument("--shadow-times", type=int, default=8, help="shadow-map instants over the shutter (8)")

@@ -90,7 +90,7 @@ class FrameContext:
     # ------------------------------------------------------------------------------ shadows
     def shadow_options(self) -> ShadowOptions:
         s = self.settings
-        return ShadowOptions(mode=s.shadows, size=s.resolved_shadow_map_size, grid=s.shadow_grid,
+        return ShadowOptions(mode=s.resolved_shadows, size=s.resolved_shadow_map_size, grid=s.shadow_grid,
                              times=s.shadow_times, keys=s.shadow_keys, light_samples=s.resolved_light_samples,
                              bias=s.shadow_bias, normal_bias=s.shadow_normal_bias, pcf=s.shadow_pcf,
                              memory_mb=s.shadow_memory_mb)
@@ -99,7 +99,7 @@ class FrameContext:
         """Shadow maps over this frame's shutter, the scene at shutter time u given by
         sample_at(u) -> Sample; None when no light can cast a visible shadow (no time spent)."""
         scene = self.scene
-        if self.settings.shadows == "off" or scene.headlight or not scene.light_prims:
+        if self.settings.resolved_shadows == "off" or scene.headlight or not scene.light_prims:
             return None
         if not lit_materials(scene.material_table, scene.tri_material):
             return None

@@ -34,7 +34,7 @@ SHADOW_PRESETS = {"draft": {"shadow_map_size": 256, "light_samples": 1},
                   "final": {"shadow_map_size": 1024, "light_samples": 9}}
 DEFAULT_SHADOW_MAP_SIZE = 512
 DEFAULT_LIGHT_SAMPLES = 1
-SHADOW_MODES = ("warped", "direct", "off")
+SHADOW_MODES = ("auto", "warped", "direct", "off")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -63,8 +63,10 @@ class RenderSettings:
             shutter close, the others at open) before the gather.
         front_blur, back_blur: velocity method: blur strength factors where the surface faces
             along / against its screen motion.
-        shadows: shadow maps "warped" from a few key maps (default), "direct" (a map rendered per
-            instant: the reference) or "off" (lights unoccluded).
+        shadows: shadow maps "warped" from a few key maps, "direct" (a map rendered per instant:
+            the reference), "off" (lights unoccluded), or "auto" (default: what measured fastest on
+            the CPU, direct for stochastic, analytic and velocity, warped for accumulation, whose
+            instants then share warped map instants).
         shadow_map_size: texels per shadow-map side (power of two); None = preset or 512.
         shadow_grid: warp control-point cells per map side (power of two; the map size = one per texel).
         shadow_times: map instants over the shutter (comparisons interpolated between them) for
@@ -97,7 +99,7 @@ class RenderSettings:
     velocity_extrude: bool = False
     front_blur: float = 1.0
     back_blur: float = 1.0
-    shadows: str = "warped"
+    shadows: str = "auto"
     shadow_map_size: int | None = None
     shadow_grid: int = 128
     shadow_times: int = 8
@@ -181,6 +183,12 @@ class RenderSettings:
         return SHADOW_PRESETS[self.quality]["light_samples"] if self.quality else DEFAULT_LIGHT_SAMPLES
 
     @property
+    def resolved_shadows(self) -> str:
+        if self.shadows != "auto":
+            return self.shadows
+        return "warped" if self.method == "accumulation" else "direct"
+
+    @property
     def resolved_seed(self) -> int:
         return 0 if self.seed is None else self.seed
 
@@ -192,8 +200,8 @@ class RenderSettings:
         d = {"method": self.method, "samples": self.resolved_samples,
              "spatial_samples": self.spatial_samples, "shutter": self.shutter,
              "segment_error_px": self.segment_error_px, "segment_time_error": self.segment_time_error,
-             "max_segments": self.max_segments, "shadows": self.shadows}
-        if self.shadows != "off":
+             "max_segments": self.max_segments, "shadows": self.resolved_shadows}
+        if self.resolved_shadows != "off":
             d.update(shadow_map_size=self.resolved_shadow_map_size, shadow_grid=self.shadow_grid,
                      shadow_times=self.shadow_times, shadow_keys=self.shadow_keys,
                      light_samples=self.resolved_light_samples, shadow_bias=self.shadow_bias,
