@@ -103,7 +103,7 @@ class FrameContext:
             return None
         if not lit_materials(scene.material_table, scene.tri_material):
             return None
-        sm = ShadowMaps(self.tables, scene.tri_vertices, scene.tri_object, True, sample_at,
+        sm = ShadowMaps(self.tables, scene.tri_vertices, scene.tri_object, sample_at,
                         self.shadow_options(), self.device, self.settings.threads, self.timings, self.counters)
         return sm if sm.active else None
 

@@ -260,7 +260,7 @@ class ShadowMaps:
     """The shadow maps of one frame: built on demand for the instants shading asks for."""
 
     def __init__(self, tables: TriangleTables, tri_vertices: np.ndarray, tri_object: np.ndarray,
-                 materials_lit: bool, sample_at: Callable[[float], Sample], options: ShadowOptions,
+                 sample_at: Callable[[float], Sample], options: ShadowOptions,
                  device: str, threads: int | None, timings: dict, counters: dict) -> None:
         self.tables = tables
         self.tri_vertices = tri_vertices
@@ -280,10 +280,9 @@ class ShadowMaps:
         self.size = options.size
         self.layouts: list[LightLayout] = []
         centre = self.sample(0.5)
-        if options.mode == "off" or not materials_lit or len(tri_vertices) == 0:
-            self.num_lights = len(centre.lights)
-            return
         self.num_lights = len(centre.lights)
+        if options.mode == "off" or len(tri_vertices) == 0:
+            return
         rows = [j for j in range(len(centre.lights)) if centre.lights[j, 17] > 0.5]
         if not rows:
             return
