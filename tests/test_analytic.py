@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 from conftest import ACCEPTANCE
-from scenes import emissive_quad_stage, lit_stage, moving_layers_stage, two_quads_stage
+from scenes import emissive_quad_stage, lit_stage, moving_layers_stage, shadow_stage, two_quads_stage
 
 import warp_blur as wb
 from warp_blur.metrics import max_abs, rmse
@@ -162,3 +162,25 @@ def test_acceptance_reference(name, tol):
         r = wb.render(os.path.join(ACCEPTANCE, "scenes", f"{name}.usda"), frame=1, resolution=(128, 96),
                       method="analytic", time_bits=bits, aovs=())
         assert rmse(r.rgba, ref) <= tol, (name, bits)
+
+
+@pytest.mark.parametrize("bits", [128, 0])
+@pytest.mark.parametrize("scene", ["lit", "moving_light_shadows"])
+def test_static_pixels_resolved_in_count_pass_match_stored_resolve(scene_path, monkeypatch, bits, scene):
+    """Pixels no moving entry reaches are resolved in the count pass (like a sharp render); that
+    must equal storing and resolving their intervals (within 1e-4), with several shading pieces
+    (a moving light) and span-averaged moving shadows on static receivers too."""
+    import warp_blur.methods.analytic as analytic
+    if scene == "lit":
+        path = lit_stage(scene_path())
+        kw = {"shadows": "off"}
+    else:
+        path = shadow_stage(scene_path(), light="sphere", light_size=0.3, mover=True,
+                            light_samples={0.5: (-0.4, 3, 0), 1.5: (0.4, 3, 0)})
+        kw = {"shadows": "direct", "light_samples": 1}
+    direct = wb.render(path, frame=1, resolution=RES, method="analytic", time_bits=bits, aovs=(), **kw)
+    monkeypatch.setattr(analytic, "DIRECT_STATIC_PIXELS", False)
+    stored = wb.render(path, frame=1, resolution=RES, method="analytic", time_bits=bits, aovs=(), **kw)
+    assert 0.0 < direct.stats["pixels_with_motion"] < 0.6
+    assert stored.stats["pixels_with_motion"] == 1.0
+    assert max_abs(direct.rgba, stored.rgba) < 1e-4

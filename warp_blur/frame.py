@@ -131,13 +131,20 @@ class FrameContext:
 
     def bin(self, positions: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray,
             entry_k1: np.ndarray) -> TileBins:
+        """Screen-tile bins of all entries."""
+        return self.bin_groups(positions, entry_tri, entry_k0, entry_k1, [np.ones(len(entry_tri), bool)])[0]
+
+    def bin_groups(self, positions: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray,
+                   groups: list[np.ndarray]) -> list[TileBins]:
+        """Separate screen-tile bins for each group (a boolean mask over the entries, shape (E,)),
+        so a kernel can walk e.g. a tile's static entries apart from its moving ones."""
         with self.timed("binning"):
             margin = 1.0
             boxes, keep = entry_pixel_bounds(self.proj, positions, self.scene.tri_vertices, entry_tri,
                                              entry_k0, entry_k1, margin)
-            bins = bin_entries(self.proj, boxes, keep, TILE_SIZE)
-        self.counters["bin_pairs"] = self.counters.get("bin_pairs", 0) + bins.num_pairs
-        return bins
+            out = [bin_entries(self.proj, boxes, keep & group, TILE_SIZE) for group in groups]
+        self.counters["bin_pairs"] = self.counters.get("bin_pairs", 0) + sum(b.num_pairs for b in out)
+        return out
 
     def view(self, bins: TileBins | None):
         return make_view(self.proj, self.settings.spatial_samples, bins, TILE_SIZE)

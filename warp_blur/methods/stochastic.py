@@ -155,7 +155,7 @@ def render_stochastic(ctx: FrameContext) -> np.ndarray:
     s = ctx.settings
     n = s.resolved_samples
     dev = ctx.device
-    plan, geo, bins, sh, view = prepare_motion(ctx)
+    plan, geo, (bins,), sh, view = prepare_motion(ctx)
     rgba = wp.zeros((ctx.num_pixels, 4), dtype=float, device=dev)
     subs = ctx.sub_pixel_offsets()
     max_band = max(1, SCRATCH_BYTES // (12 * n))

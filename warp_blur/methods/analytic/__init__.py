@@ -1,9 +1,10 @@
 """Analytic motion blur (SPEC §5): extruded-triangle prisms -> per-pixel time intervals with depth
 -> front-to-back sort with splitting -> temporal-visibility bitmask (or exact) resolve.
 
-Pipeline per frame: motion segments per prim (segments.py) -> tile bins of the moving entries ->
-count pass, prefix sum, fill pass (intervals.py; exact capacity per pixel, nothing dropped; pixel
-chunks when the arrays would exceed the memory budget) -> resolve (resolve.py).
+Pipeline per frame: motion segments per prim (segments.py) -> tile bins, static and moving entries
+apart -> count pass (intervals.py; a pixel no moving entry reaches is resolved right there, like a
+sharp render) -> prefix sum over the other pixels -> fill pass (exact capacity per pixel, nothing
+dropped; pixel chunks when the arrays would exceed the memory budget) -> resolve (resolve.py).
 """
 
 from __future__ import annotations
@@ -19,6 +20,9 @@ from .segments import prepare_motion
 
 BYTES_PER_INTERVAL = 8 + 8 + 12 + 4  # times, depths, radiance, sort index
 MAX_EXACT_EVENTS = 1 << 16
+# Samples that no moving entry reaches are resolved in the count pass, with the resolve's own
+# weights (tests switch this off to compare against resolving stored intervals).
+DIRECT_STATIC_PIXELS = True
 
 
 def pixel_chunks(offsets: np.ndarray, budget_intervals: int) -> list[tuple[int, int]]:
@@ -39,7 +43,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     bits = s.resolved_time_bits
     n_shade = s.resolved_samples
     dev = ctx.device
-    plan, geo, bins, sh, view = prepare_motion(ctx)
+    plan, geo, (static_bins, moving_bins), sh, view = prepare_motion(ctx, split_static=True)
     dome = wp.vec3(*[float(x) for x in ctx.scene.dome])
     num_px = ctx.num_pixels
     rgba = wp.zeros((num_px, 4), dtype=float, device=dev)
@@ -52,17 +56,23 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     subs = ctx.sub_pixel_offsets()
     weight = 1.0 / len(subs)
     lights_static = 1 if plan.lights_static else 0
-    total_iv, max_iv, peak_bytes, num_chunks = 0, 0, 0, 0
+    direct = 1 if DIRECT_STATIC_PIXELS else 0
+    total_iv, max_iv, peak_bytes, num_chunks, listed = 0, 0, 0, 0, 0
     for sub in subs:
         sub_v = wp.vec2(*sub)
         counts = wp.zeros(num_px, dtype=int, device=dev)
         static_hit = wp.zeros(num_px, dtype=int, device=dev)
         with ctx.timed("count"):
             launch_pixels(count_intervals, num_px,
-                          lambda first, _n: [view, geo, sh, bins, sub_v, n_shade, lights_static, first, counts,
-                                             fallbacks, dummy2, dummy2, dummy3, static_hit], dev, s.threads)
+                          lambda first, _n: [view, geo, sh, static_bins, moving_bins, sub_v, n_shade, lights_static,
+                                             direct, bits, weight, first, counts, fallbacks, dummy2, dummy2, dummy3,
+                                             static_hit, rgba], dev, s.threads)
         counts_np = counts.numpy()
-        offsets_np = np.concatenate([[0], np.cumsum(counts_np, dtype=np.int64)])
+        # pixels resolved in the count pass (no moving entry reaches them) count 0 and are not listed
+        pixels_np = np.nonzero(counts_np)[0].astype(np.int32) if direct else np.arange(num_px, dtype=np.int32)
+        listed += len(pixels_np)
+        list_counts = counts_np[pixels_np]
+        offsets_np = np.concatenate([[0], np.cumsum(list_counts, dtype=np.int64)])
         if offsets_np[-1] >= 2**31:
             # int32 offsets: render in chunks whose local offsets stay small
             budget = min(budget, 2**30)
@@ -70,7 +80,8 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
         max_iv = max(max_iv, int(counts_np.max()) if len(counts_np) else 0)
         chunks = pixel_chunks(offsets_np, budget)
         num_chunks += len(chunks)
-        offsets = wp.array(offsets_np.astype(np.int64).clip(max=2**31 - 1).astype(np.int32), dtype=int, device=dev)
+        offsets = wp.array(offsets_np.clip(max=2**31 - 1).astype(np.int32), dtype=int, device=dev)
+        pixels = wp.array(pixels_np, dtype=int, device=dev)
         for p0, p1 in chunks:
             base = int(offsets_np[p0])
             n_iv = int(offsets_np[p1] - base)
@@ -81,24 +92,28 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
             order = wp.zeros(max(n_iv, 1), dtype=int, device=dev)
             with ctx.timed("fill"):
                 launch_pixels(fill_intervals, p1 - p0,
-                              lambda first, _n: [view, geo, sh, bins, sub_v, n_shade, lights_static, first, offsets,
-                                                 base, fallbacks, iv_t, iv_z, iv_rgb, static_hit], dev, s.threads,
-                              start=p0)
+                              lambda first, _n: [view, geo, sh, moving_bins, sub_v, n_shade, lights_static, pixels,
+                                                 first, offsets, base, fallbacks, iv_t, iv_z, iv_rgb, static_hit],
+                              dev, s.threads, start=p0)
             with ctx.timed("resolve"):
                 if bits > 0:
                     launch_pixels(resolve_bitmask, p1 - p0,
-                                  lambda first, n: [view, dome, offsets, base, iv_t, iv_z, iv_rgb, bits, weight, first,
-                                                    first, order, wp.zeros((n, 2 * words), dtype=wp.uint32, device=dev),
-                                                    rgba], dev, s.threads, start=p0)
+                                  lambda first, n: [view, dome, pixels, offsets, base, iv_t, iv_z, iv_rgb, bits,
+                                                    weight, first, first, order,
+                                                    wp.zeros((n, 2 * words), dtype=wp.uint32, device=dev), rgba],
+                                  dev, s.threads, start=p0)
                 else:
                     launch_pixels(resolve_exact, p1 - p0,
-                                  lambda first, _n: [view, dome, offsets, base, iv_t, iv_z, iv_rgb, weight, first,
-                                                     MAX_EXACT_EVENTS, truncated, rgba], dev, s.threads, start=p0)
+                                  lambda first, _n: [view, dome, pixels, offsets, base, iv_t, iv_z, iv_rgb, weight,
+                                                     first, MAX_EXACT_EVENTS, truncated, rgba], dev, s.threads,
+                                  start=p0)
+    samples_total = max(num_px * len(subs), 1)
     ctx.counters.update({
         "time_bits": bits, "shading_samples_max": n_shade, "motion_segments": plan.segments_per_prim,
         "motion_segment_error_px": plan.max_error_px, "motion_snapshots": plan.snapshots, "motion_segments_capped": plan.capped, "entries": int(len(plan.entry_tri)),
-        "intervals": total_iv, "intervals_per_pixel_mean": total_iv / max(num_px * len(subs), 1),
+        "intervals": total_iv, "intervals_per_pixel_mean": total_iv / samples_total,
         "intervals_per_pixel_max": max_iv, "interval_bytes_peak": peak_bytes, "interval_chunks": num_chunks,
+        "pixels_with_motion": listed / samples_total,
         "near_far_fallbacks": int(fallbacks.numpy()[0]), "exact_truncations": int(truncated.numpy()[0]),
     })
     return rgba.numpy()

@@ -25,6 +25,7 @@ from ...kernel_types import Bins, Geometry, Shading, View
 from ...raster import box_rejects, pixel_tile
 from ...rays import edge_cross, edge_owns, hit_from_edges, intersect_triangle, pixel_ray_direction, pixel_ray_origin
 from ...shading import max_component, shade_entry_hit, shade_entry_hit_span
+from .resolve import span_slots
 
 MAX_PIECES = 16
 CLIP_SAMPLES = 8
@@ -190,10 +191,10 @@ def shade_at(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.ve
 
 
 @wp.func
-def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
-                s_a: float, s_b: float, n_shade_max: int, constant_radiance: int, write: int, base: int,
-                iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3)) -> int:
-    """Store [s_a, s_b] (already known covered and within the clipping range) as intervals."""
+def piece_count(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
+                s_a: float, s_b: float, n_shade_max: int, constant_radiance: int) -> int:
+    """How many intervals [s_a, s_b] is stored as: split where view depth is far from linear and
+    into as many shading pieces as the radiance change along it needs (1/256 steps, capped)."""
     z_a = depth_at(m, o, d, s_a)
     z_b = depth_at(m, o, d, s_b)
     z_m = depth_at(m, o, d, 0.5 * (s_a + s_b))
@@ -203,7 +204,6 @@ def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp
     if err > tol and tol > 0.0:
         n = wp.min(int(wp.ceil(wp.sqrt(err / tol))), MAX_PIECES)
     if constant_radiance == 0 and n_shade_max > 1:
-        # as many shading pieces as the radiance change along the piece needs (1/256 steps)
         la = shade_at(view, geo, sh, e, m, o, d, s_a)
         lm = shade_at(view, geo, sh, e, m, o, d, 0.5 * (s_a + s_b))
         lb = shade_at(view, geo, sh, e, m, o, d, s_b)
@@ -211,26 +211,40 @@ def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp
         dev = wp.max(dev, max_component(wp.abs(lm - 0.5 * (la + lb))) * 4.0)
         ns = int(wp.ceil(dev / SHADE_TOLERANCE))
         n = wp.max(n, wp.clamp(ns, 1, n_shade_max))
+    return n
+
+
+@wp.func
+def piece_radiance(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
+                   s0: float, s1: float) -> wp.vec3:
+    """Radiance of the piece [s0, s1] at its middle, with shadows averaged over the piece's shutter
+    span (a static receiver's single piece sees a moving shadow's whole time average)."""
+    du = m.u1 - m.u0
+    sm = 0.5 * (s0 + s1)
+    a = m.a0 + sm * (m.a1 - m.a0)
+    b = m.b0 + sm * (m.b1 - m.b0)
+    c = m.c0 + sm * (m.c1 - m.c0)
+    return shade_entry_hit_span(view, geo, sh, e, sm, m.u0 + sm * du, (s1 - s0) * du, o, d, plane_hit(o, d, a, b, c))
+
+
+@wp.func
+def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
+                s_a: float, s_b: float, n_shade_max: int, constant_radiance: int, write: int, base: int,
+                iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3)) -> int:
+    """Store [s_a, s_b] (already known covered and within the clipping range) as intervals."""
+    n = piece_count(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, constant_radiance)
     if write != 0:
         du = m.u1 - m.u0
-        z_prev = z_a
+        z_prev = depth_at(m, o, d, s_a)
         for i in range(n):
             s0 = s_a + (s_b - s_a) * float(i) / float(n)
             s1 = s_a + (s_b - s_a) * float(i + 1) / float(n)
-            z1 = z_b
+            z1 = depth_at(m, o, d, s_b)
             if i + 1 < n:
                 z1 = depth_at(m, o, d, s1)
-            sm = 0.5 * (s0 + s1)
-            a = m.a0 + sm * (m.a1 - m.a0)
-            b = m.b0 + sm * (m.b1 - m.b0)
-            c = m.c0 + sm * (m.c1 - m.c0)
-            hit = plane_hit(o, d, a, b, c)
-            # shadows averaged over the piece's shutter span (a static receiver's single piece
-            # sees a moving shadow's whole time average)
-            rgb = shade_entry_hit_span(view, geo, sh, e, sm, m.u0 + sm * du, (s1 - s0) * du, o, d, hit)
             iv_t[base + i] = wp.vec2(m.u0 + s0 * du, m.u0 + s1 * du)
             iv_z[base + i] = wp.vec2(z_prev, z1)
-            iv_rgb[base + i] = rgb
+            iv_rgb[base + i] = piece_radiance(view, geo, sh, e, m, o, d, s0, s1)
             z_prev = z1
     return n
 
@@ -278,21 +292,30 @@ def emit_clipped(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: w
 
 
 @wp.func
-def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, n_shade_max: int,
-                    lights_static: int, write: int, base: int, iv_t: wp.array(dtype=wp.vec2),
-                    iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3),
-                    fallbacks: wp.array(dtype=int)) -> int:
-    """Count (write=0) or store (write=1, at base) the coverage intervals of entry e at a pixel ray."""
-    tri = geo.entry_tri[e]
-    vi = geo.tri_vertices[tri]
-    k0 = geo.entry_k0[e]
-    k1 = geo.entry_k1[e]
-    mat = geo.tri_material[tri]
-    emissive_only = int(0)
+def entry_emissive_only(geo: Geometry, sh: Shading, e: int) -> int:
+    """1 when entry e's material reflects nothing (its radiance is its constant emission)."""
+    mat = geo.tri_material[geo.entry_tri[e]]
     if sh.materials[mat, 10] < 0.5:
         if wp.length(wp.vec3(sh.materials[mat, 0], sh.materials[mat, 1], sh.materials[mat, 2])) == 0.0:
             if wp.length(wp.vec3(sh.materials[mat, 6], sh.materials[mat, 7], sh.materials[mat, 8])) == 0.0:
-                emissive_only = 1
+                return 1
+    return 0
+
+
+@wp.func
+def static_constant(geo: Geometry, sh: Shading, e: int, lights_static: int) -> int:
+    """1 when a static entry's radiance is the same all shutter (emissive only, or static lights)."""
+    if lights_static != 0:
+        return 1
+    return entry_emissive_only(geo, sh, e)
+
+
+@wp.func
+def entry_moving(geo: Geometry, e: int) -> Moving:
+    """Entry e's triangle at both ends of its span (a static entry spans the whole shutter)."""
+    vi = geo.tri_vertices[geo.entry_tri[e]]
+    k0 = geo.entry_k0[e]
+    k1 = geo.entry_k1[e]
     m = Moving()
     m.a0 = geo.positions[k0, vi[0]]
     m.b0 = geo.positions[k0, vi[1]]
@@ -300,18 +323,32 @@ def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, 
     m.a1 = geo.positions[k1, vi[0]]
     m.b1 = geo.positions[k1, vi[1]]
     m.c1 = geo.positions[k1, vi[2]]
+    m.u0 = 0.0
+    m.u1 = 1.0
+    if k0 != k1:
+        m.u0 = float(k0) / float(geo.num_segments)
+        m.u1 = float(k1) / float(geo.num_segments)
+    return m
+
+
+@wp.func
+def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, n_shade_max: int,
+                    lights_static: int, write: int, base: int, iv_t: wp.array(dtype=wp.vec2),
+                    iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3),
+                    fallbacks: wp.array(dtype=int)) -> int:
+    """Count (write=0) or store (write=1, at base) the coverage intervals of entry e at a pixel ray."""
+    vi = geo.tri_vertices[geo.entry_tri[e]]
+    k0 = geo.entry_k0[e]
+    k1 = geo.entry_k1[e]
+    emissive_only = entry_emissive_only(geo, sh, e)
+    m = entry_moving(geo, e)
     if k0 == k1:
         # static entry: covered for the whole shutter or never
         hit = intersect_triangle(o, d, m.a0, m.b0, m.c0, vi)
         if hit[0] == 0.0 or not in_range(view, hit[1]):
             return 0
-        m.u0 = 0.0
-        m.u1 = 1.0
-        constant = emissive_only
-        if lights_static != 0:
-            constant = 1
-        return emit_pieces(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max, constant, write, base, iv_t, iv_z, iv_rgb)
-    m.u0 = float(k0) / float(geo.num_segments)
+        return emit_pieces(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max, static_constant(geo, sh, e, lights_static),
+                           write, base, iv_t, iv_z, iv_rgb)
     m.u1 = float(k1) / float(geo.num_segments)
     ca = edge_coeffs(d, m.a0 - o, m.a1 - m.a0, m.b0 - o, m.b1 - m.b0, vi[0], vi[1])
     cb = edge_coeffs(d, m.b0 - o, m.b1 - m.b0, m.c0 - o, m.c1 - m.c0, vi[1], vi[2])
@@ -355,48 +392,39 @@ def sample_ray(view: View, px: int, py: int, sub: wp.vec2):
 
 
 @wp.func
-def pixel_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, pix: int, sub: wp.vec2,
-                    n_shade_max: int, lights_static: int, write: int, base: int, iv_t: wp.array(dtype=wp.vec2),
-                    iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3),
-                    fallbacks: wp.array(dtype=int), static_hit: wp.array(dtype=int)) -> int:
-    """Count or store the intervals of one pixel sample. Only the nearest static surface is kept
-    (it covers the whole shutter, so static surfaces behind it never show), and moving entries
-    entirely behind it are skipped: static geometry costs what a sharp render costs. The count
-    pass (write=0) finds that surface and records it in static_hit[pix]; the fill pass reuses it."""
-    px = pix % view.width
-    py = pix // view.width
-    o, d = sample_ray(view, px, py, sub)
-    sx = float(px) + sub[0]
-    sy = float(py) + sub[1]
-    tile = pixel_tile(view, px, py)
+def nearest_static(view: View, geo: Geometry, static_bins: Bins, tile: int, sx: float, sy: float, o: wp.vec3,
+                   d: wp.vec3):
+    """(entry, depth) of the nearest static entry hit by the sample's ray, or (-1, inf). It covers
+    the whole shutter, so static surfaces behind it never show: static geometry costs what a
+    sharp render's visibility costs."""
     e_static = int(-1)
     z_static = float(wp.inf)
-    if write == 0:
-        for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
-            e = bins.tile_entries[i]
-            if geo.entry_k0[e] == geo.entry_k1[e] and not box_rejects(bins, e, sx, sy):
-                vi = geo.tri_vertices[geo.entry_tri[e]]
-                k = geo.entry_k0[e]
-                hit = intersect_triangle(o, d, geo.positions[k, vi[0]], geo.positions[k, vi[1]],
-                                         geo.positions[k, vi[2]], vi)
-                if hit[0] > 0.0 and in_range(view, hit[1]) and hit[1] < z_static:
-                    z_static = hit[1]
-                    e_static = e
-        static_hit[pix] = e_static
-    else:
-        e_static = static_hit[pix]
-        if e_static >= 0:
-            vi = geo.tri_vertices[geo.entry_tri[e_static]]
-            k = geo.entry_k0[e_static]
+    for i in range(static_bins.tile_offsets[tile], static_bins.tile_offsets[tile + 1]):
+        e = static_bins.tile_entries[i]
+        if not box_rejects(static_bins, e, sx, sy):
+            vi = geo.tri_vertices[geo.entry_tri[e]]
+            k = geo.entry_k0[e]
             hit = intersect_triangle(o, d, geo.positions[k, vi[0]], geo.positions[k, vi[1]], geo.positions[k, vi[2]],
                                      vi)
-            z_static = hit[1]
+            if hit[0] > 0.0 and in_range(view, hit[1]) and hit[1] < z_static:
+                z_static = hit[1]
+                e_static = e
+    return e_static, z_static
+
+
+@wp.func
+def moving_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, tile: int, sx: float, sy: float,
+                     o: wp.vec3, d: wp.vec3, z_static: float, n_shade_max: int, lights_static: int, write: int,
+                     base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
+                     iv_rgb: wp.array(dtype=wp.vec3), fallbacks: wp.array(dtype=int)) -> int:
+    """Count or store the intervals of the moving entries at a sample, skipping those entirely
+    behind the nearest static surface (depth z_static)."""
     n = int(0)
-    for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
-        e = bins.tile_entries[i]
-        k0 = geo.entry_k0[e]
-        k1 = geo.entry_k1[e]
-        if k0 != k1 and not box_rejects(bins, e, sx, sy):
+    for i in range(moving_bins.tile_offsets[tile], moving_bins.tile_offsets[tile + 1]):
+        e = moving_bins.tile_entries[i]
+        if not box_rejects(moving_bins, e, sx, sy):
+            k0 = geo.entry_k0[e]
+            k1 = geo.entry_k1[e]
             vi = geo.tri_vertices[geo.entry_tri[e]]
             zmin = wp.min(wp.min(wp.min(-geo.positions[k0, vi[0]][2], -geo.positions[k0, vi[1]][2]),
                                  wp.min(-geo.positions[k0, vi[2]][2], -geo.positions[k1, vi[0]][2])),
@@ -404,33 +432,97 @@ def pixel_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, pix: int
             if view.ortho != 0 or zmin <= z_static:
                 n += entry_intervals(view, geo, sh, e, o, d, n_shade_max, lights_static, write, base + n, iv_t,
                                      iv_z, iv_rgb, fallbacks)
-    if e_static >= 0:
-        n += entry_intervals(view, geo, sh, e_static, o, d, n_shade_max, lights_static, write, base + n, iv_t, iv_z,
-                             iv_rgb, fallbacks)
     return n
 
 
+@wp.func
+def static_color(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, n_shade_max: int,
+                 lights_static: int, bits: int) -> wp.vec4:
+    """(rgb, alpha) of a sample that sees only static entry e (or the dome when e < 0): its pieces
+    weighted exactly as the resolve weighs them (time slots for bits > 0, span lengths for exact),
+    without storing intervals. Equals resolving the stored pieces."""
+    if e < 0:
+        return wp.vec4(sh.dome[0], sh.dome[1], sh.dome[2], 0.0)
+    m = entry_moving(geo, e)
+    n = piece_count(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max, static_constant(geo, sh, e, lights_static))
+    color = wp.vec3(0.0, 0.0, 0.0)
+    covered = float(0.0)
+    for i in range(n):
+        s0 = float(i) / float(n)
+        s1 = float(i + 1) / float(n)
+        w = s1 - s0
+        if bits > 0:
+            slots = span_slots(s0, s1, bits)
+            w = float(slots[1] - slots[0]) / float(bits)
+        color = color + piece_radiance(view, geo, sh, e, m, o, d, s0, s1) * w
+        covered = covered + w
+    if bits > 0:
+        color = color + sh.dome * (1.0 - covered)
+    return wp.vec4(color[0], color[1], color[2], covered)
+
+
 @wp.kernel(enable_backward=False)
-def count_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, sub: wp.vec2, n_shade_max: int,
-                    lights_static: int, first_pixel: int,
+def count_intervals(view: View, geo: Geometry, sh: Shading, static_bins: Bins, moving_bins: Bins, sub: wp.vec2,
+                    n_shade_max: int, lights_static: int, direct: int, bits: int, weight: float, first_pixel: int,
                     # outputs
                     counts: wp.array(dtype=int), fallbacks: wp.array(dtype=int),
                     iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3),
-                    static_hit: wp.array(dtype=int)):
+                    static_hit: wp.array(dtype=int), rgba: wp.array2d(dtype=float)):
     """counts[pix] = number of intervals at the pixel's sample (iv_* are not written);
-    static_hit[pix] = its nearest static entry (or -1), reused by the fill pass."""
+    static_hit[pix] = its nearest static entry (or -1), reused by the fill pass. With direct = 1, a
+    sample no moving entry reaches is resolved here (rgba += weight × its colour) and counts 0:
+    static pixels cost what a sharp render costs, and the fill and resolve skip them."""
     pix = first_pixel + wp.tid()
-    counts[pix] = pixel_intervals(view, geo, sh, bins, pix, sub, n_shade_max, lights_static, 0, 0, iv_t, iv_z,
-                                  iv_rgb, fallbacks, static_hit)
+    px = pix % view.width
+    py = pix // view.width
+    o, d = sample_ray(view, px, py, sub)
+    sx = float(px) + sub[0]
+    sy = float(py) + sub[1]
+    tile = pixel_tile(view, px, py)
+    e_static, z_static = nearest_static(view, geo, static_bins, tile, sx, sy, o, d)
+    static_hit[pix] = e_static
+    n = moving_intervals(view, geo, sh, moving_bins, tile, sx, sy, o, d, z_static, n_shade_max, lights_static, 0, 0,
+                         iv_t, iv_z, iv_rgb, fallbacks)
+    if n == 0 and direct != 0:
+        c = static_color(view, geo, sh, e_static, o, d, n_shade_max, lights_static, bits)
+        rgba[pix, 0] = rgba[pix, 0] + weight * c[0]
+        rgba[pix, 1] = rgba[pix, 1] + weight * c[1]
+        rgba[pix, 2] = rgba[pix, 2] + weight * c[2]
+        rgba[pix, 3] = rgba[pix, 3] + weight * c[3]
+        counts[pix] = 0
+        return
+    if e_static >= 0:
+        n += entry_intervals(view, geo, sh, e_static, o, d, n_shade_max, lights_static, 0, 0, iv_t, iv_z, iv_rgb,
+                             fallbacks)
+    counts[pix] = n
 
 
 @wp.kernel(enable_backward=False)
-def fill_intervals(view: View, geo: Geometry, sh: Shading, bins: Bins, sub: wp.vec2, n_shade_max: int,
-                   lights_static: int, first_pixel: int, offsets: wp.array(dtype=int), chunk_base: int,
+def fill_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, sub: wp.vec2, n_shade_max: int,
+                   lights_static: int, pixels: wp.array(dtype=int), first: int, offsets: wp.array(dtype=int),
+                   chunk_base: int,
                    # outputs
                    fallbacks: wp.array(dtype=int), iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
                    iv_rgb: wp.array(dtype=wp.vec3), static_hit: wp.array(dtype=int)):
-    """Store each pixel's intervals at offsets[pix] - chunk_base in the chunk's arrays."""
-    pix = first_pixel + wp.tid()
-    pixel_intervals(view, geo, sh, bins, pix, sub, n_shade_max, lights_static, 1, offsets[pix] - chunk_base, iv_t,
-                    iv_z, iv_rgb, fallbacks, static_hit)
+    """Store the intervals of listed pixel k = first + tid (pixel pixels[k]) at offsets[k] - chunk_base
+    in the chunk's arrays: the moving entries' first, then the nearest static entry's."""
+    k = first + wp.tid()
+    pix = pixels[k]
+    base = offsets[k] - chunk_base
+    px = pix % view.width
+    py = pix // view.width
+    o, d = sample_ray(view, px, py, sub)
+    sx = float(px) + sub[0]
+    sy = float(py) + sub[1]
+    e_static = static_hit[pix]
+    z_static = float(wp.inf)
+    if e_static >= 0:
+        vi = geo.tri_vertices[geo.entry_tri[e_static]]
+        ks = geo.entry_k0[e_static]
+        z_static = intersect_triangle(o, d, geo.positions[ks, vi[0]], geo.positions[ks, vi[1]],
+                                      geo.positions[ks, vi[2]], vi)[1]
+    n = moving_intervals(view, geo, sh, moving_bins, pixel_tile(view, px, py), sx, sy, o, d, z_static, n_shade_max,
+                         lights_static, 1, base, iv_t, iv_z, iv_rgb, fallbacks)
+    if e_static >= 0:
+        entry_intervals(view, geo, sh, e_static, o, d, n_shade_max, lights_static, 1, base + n, iv_t, iv_z, iv_rgb,
+                        fallbacks)

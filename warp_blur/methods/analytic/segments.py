@@ -204,17 +204,23 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
                       tri_visible=vis)
 
 
-def prepare_motion(ctx):
+def prepare_motion(ctx, split_static: bool = False):
     """The moving scene of a frame on the device, as the analytic and stochastic methods use it:
-    (plan, Geometry, Bins, Shading, View)."""
+    (plan, Geometry, bins, Shading, View). bins is [Bins of all entries], or with split_static
+    [Bins of the static entries, Bins of the moving entries]."""
     from ...device_data import make_bins, make_geometry, make_shading
     s = ctx.settings
     with ctx.timed("segments"):
         plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.segment_error_px,
                            s.segment_time_error)
     geo = make_geometry(ctx.tables, plan.positions, plan.normals, plan.entry_tri, plan.entry_k0, plan.entry_k1)
-    tile_bins = ctx.bin(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1)
-    bins = make_bins(tile_bins, ctx.device)
+    if split_static:
+        static = plan.entry_k0 == plan.entry_k1
+        groups = [static, ~static]
+    else:
+        groups = [np.ones(len(plan.entry_tri), bool)]
+    tile_bins = ctx.bin_groups(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1, groups)
+    bins = [make_bins(b, ctx.device) for b in tile_bins]
     shadows = None
     maps = ctx.shadow_maps(plan.sample)
     if maps is not None:
@@ -223,4 +229,4 @@ def prepare_motion(ctx):
             shadows = maps.data([(b + 0.5) / num_times for b in range(num_times)])
     sh = make_shading(ctx.scene.material_table, plan.lights, ctx.scene.dome, ctx.device, shadows,
                       ctx.shadow_options())
-    return plan, geo, bins, sh, ctx.view(tile_bins)
+    return plan, geo, bins, sh, ctx.view(tile_bins[0])
