@@ -176,3 +176,27 @@ def test_static_shadows_are_rendered_once(scene_path):
     for method in ("analytic", "accumulation"):
         r = render(path, method, shutter=(-0.5, 0.5))
         assert r.stats.get("shadow_maps_rendered", 0) == 1 and "shadow_maps_warped" not in r.stats
+
+
+@pytest.mark.parametrize("method", ["analytic", "accumulation"])
+def test_still_occluders_render_once_under_a_still_light(scene_path, monkeypatch, method):
+    """Direct maps under a light that holds still: the still ground renders once into a base map
+    and each instant renders only the moving occluders over it; the maps (and so the image) equal
+    rendering every triangle at every instant."""
+    from warp_blur import shadow_maps
+    path = shadow_stage(scene_path(), occluder_samples=MOVING, mover=True)
+    kw = {"shadows": "direct"} if method == "analytic" else {"shadows": "direct", "samples": 8}
+    based = render(path, method, **kw)
+    assert based.stats["shadow_still_triangles"] == 2          # the ground; both occluders move
+    assert based.stats["shadow_maps_still_base"] == 1
+    monkeypatch.setattr(shadow_maps.ShadowMaps, "_still_triangles",
+                        lambda self: np.zeros(len(self.tri_vertices), bool))
+    full = render(path, method, **kw)
+    assert np.abs(based.rgba - full.rgba).max() < 1e-6
+
+
+def test_a_moving_light_renders_every_occluder_per_instant(scene_path):
+    path = shadow_stage(scene_path(), occluder_samples=MOVING, light="sphere", light_size=0.2,
+                        light_samples={0.5: (-0.3, 3, 0), 1.5: (0.3, 3, 0)})
+    r = render(path, "analytic", shadows="direct")
+    assert "shadow_maps_still_base" not in r.stats and r.stats["shadow_maps_rendered"] == 8

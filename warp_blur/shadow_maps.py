@@ -48,6 +48,9 @@ JUMP_CELLS = 8.0
 MAX_FRUSTUM_HALF_ANGLE_COS = 0.5
 #: tile size (texels) of the warped triangles' bins: small, since control-point cells are small
 WARP_TILE = 8
+#: shutter instants at which a triangle must hold still to render once into a static base map
+#: (the motion planner's probes; a vertex is still when it is identical at all of them)
+STILL_PROBES = (0.0, 0.1234, 0.25, 0.5, 0.618, 0.75, 1.0)
 
 
 @dataclass(frozen=True)
@@ -101,7 +104,8 @@ class LightLayout:
     kind: int
     offsets: np.ndarray
     faces: list[Face]
-    static: bool = True
+    static: bool = True                # nothing moves in the light's view: one map serves the shutter
+    light_still: bool | None = None    # the light holds still over the shutter (found when needed)
 
 
 @dataclass
@@ -277,6 +281,8 @@ class ShadowMaps:
         self._static_data: ShadowData | None = None
         self._meshes: dict = {}
         self._binned: ShadowData | None = None
+        self._still: np.ndarray | None = None
+        self._bases: dict[tuple[int, int, int], np.ndarray] = {}
         self.size = options.size
         self.layouts: list[LightLayout] = []
         centre = self.sample(0.5)
@@ -371,12 +377,61 @@ class ShadowMaps:
         return a, -a @ o
 
     # ------------------------------------------------------------------------------ rendering
-    def _render_face(self, lay: LightLayout, face: Face, m: int, s: Sample):
-        """Depth (S*S,), triangle (S*S,) and barycentrics (S*S, 2) of one face, rendered."""
+    def _still_triangles(self) -> np.ndarray:
+        """(T,) bool: triangles identical and equally visible at every probe of the shutter."""
+        if self._still is None:
+            probes = [self.sample(u) for u in STILL_PROBES]
+            ref = probes[0]
+            still_v = np.ones(len(ref.positions), bool)
+            still_t = np.ones(len(self.tri_vertices), bool)
+            for p in probes[1:]:
+                if p.positions.shape != ref.positions.shape:
+                    still_v[:] = False
+                    break
+                still_v &= (p.positions == ref.positions).all(axis=1)
+                if len(p.tri_visible) == len(still_t):
+                    still_t &= p.tri_visible == ref.tri_visible
+            self._still = still_t & still_v[self.tri_vertices].all(axis=1) if len(self.tri_vertices) else still_t
+            self.counters["shadow_still_triangles"] = int(self._still.sum())
+        return self._still
+
+    def _direct_depth(self, lay: LightLayout, fi: int, m: int, u: float) -> np.ndarray:
+        """Depth (S, S) of face fi, light sample m, at shutter time u, rendered. Under a light that
+        holds still, the still triangles are rendered once into a base map and each instant renders
+        only the moving ones over it (the nearer depth wins): still occluders cost one map."""
+        s = self.size
+        face = lay.faces[fi]
+        target = self.sample(0.5 if lay.static else u)
+        t0 = time.perf_counter()
+        if lay.light_still is None and not lay.static:
+            lay.light_still = all(np.array_equal(self.sample(p).lights[lay.row], target.lights[lay.row])
+                                  for p in STILL_PROBES)
+        if lay.static or not lay.light_still:
+            depth = self._render_face(lay, face, m, target)[0].numpy().reshape(s, s)
+        else:
+            still = self._still_triangles()
+            key = (lay.row, m, fi)
+            if key not in self._bases:
+                self._bases[key] = self._render_face(lay, face, m, target, still)[0].numpy().reshape(s, s)
+                self._count("shadow_maps_still_base", 1)
+            depth = self._bases[key]
+            if not still.all():
+                moving = self._render_face(lay, face, m, target, ~still)[0].numpy().reshape(s, s)
+                depth = np.minimum(depth, moving)
+        self._add_time("shadow_render", time.perf_counter() - t0)
+        self._count("shadow_maps_rendered", 1)
+        return depth
+
+    def _render_face(self, lay: LightLayout, face: Face, m: int, s: Sample, subset: np.ndarray | None = None):
+        """Depth (S*S,), triangle (S*S,) and barycentrics (S*S, 2) of one face, rendered from the
+        visible triangles (of `subset`, a (T,) mask, when given)."""
         a, t = self._face_transform(lay, face, m, s)
         q = s.positions @ a.T + t
         proj = face.projection(self.size)
-        tris = np.nonzero(s.tri_visible)[0].astype(np.int32) if len(s.tri_visible) else np.zeros(0, np.int32)
+        visible = s.tri_visible if len(s.tri_visible) else np.zeros(len(self.tri_vertices), bool)
+        if subset is not None:
+            visible = visible & subset
+        tris = np.nonzero(visible)[0].astype(np.int32)
         k = np.zeros(len(tris), np.int32)
         boxes, keep = entry_pixel_bounds(proj, q[None], self.tri_vertices, tris, k, k, 1.0)
         bins = bin_entries(proj, boxes, keep, TILE_SIZE)
@@ -605,13 +660,9 @@ class ShadowMaps:
                 self.counters["shadow_keys"] = max(self.counters.get("shadow_keys", 0), len(keys))
             for m in range(len(lay.offsets)):
                 for u in times:
-                    target = self.sample(0.5 if lay.static else u)
                     for fi, face in enumerate(lay.faces):
                         if keys is None:
-                            t0 = time.perf_counter()
-                            maps[idx] = self._render_face(lay, face, m, target)[0].numpy().reshape(s, s)
-                            self._add_time("shadow_render", time.perf_counter() - t0)
-                            self._count("shadow_maps_rendered", 1)
+                            maps[idx] = self._direct_depth(lay, fi, m, u)
                         else:
                             maps[idx] = self._warp_face(lay, fi, m, u, keys)
                             self._count("shadow_maps_warped", 1)
