@@ -200,3 +200,18 @@ def test_a_moving_light_renders_every_occluder_per_instant(scene_path):
                         light_samples={0.5: (-0.3, 3, 0), 1.5: (0.3, 3, 0)})
     r = render(path, "analytic", shadows="direct")
     assert "shadow_maps_still_base" not in r.stats and r.stats["shadow_maps_rendered"] == 8
+
+
+def test_texels_that_never_change_take_one_lookup_for_a_time_span(scene_path, monkeypatch):
+    """A static receiver's interval averages the shadow over its whole span; where the light holds
+    still and the texels read never change (most of the map), one lookup stands for the span.
+    The image equals looking up every instant."""
+    from warp_blur import shadow_maps
+    path = shadow_stage(scene_path(), occluder_samples=MOVING)
+    steady = render(path, "analytic", shadows="direct")
+    assert 0.0 < steady.stats["shadow_texels_varying"] < 0.3
+    monkeypatch.setattr(shadow_maps, "varying_texels", lambda maps, lights, times: np.ones(maps.shape, np.uint8))
+    every = render(path, "analytic", shadows="direct")
+    assert every.stats["shadow_texels_varying"] == 1.0
+    assert np.abs(steady.rgba - every.rgba).max() < 1e-5
+    assert rmse(steady.rgba, render(path, "analytic", shadows="off").rgba) > 0.01   # there is a shadow

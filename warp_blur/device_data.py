@@ -79,15 +79,25 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
     s.num_lights = nl
     s.light_segments = lights.shape[0] - 1
     s.dome = wp.vec3(*[float(x) for x in dome])
+    # per light: first map (-1 = no shadow), light samples, faces, 1 when the light holds still
+    # over the shutter (its maps' texel flags then tell where a time span needs one lookup)
+    still = (lt == lt[:1]).all(axis=(0, 2)).astype(np.int32) if len(lt) else np.ones(lt.shape[1], np.int32)
     if shadows is None:
         s.shadow_maps = wp.zeros((1, 1, 1), dtype=float, device=device)
+        s.shadow_varying = wp.zeros((1, 1, 1), dtype=wp.uint8, device=device)
         s.shadow_faces = wp.zeros((1, FACE_WIDTH), dtype=float, device=device)
-        s.shadow_lights = wp.array(np.full((max(nl, 1), 3), -1, np.int32), dtype=int, device=device)
+        info = np.full((max(nl, 1), 4), -1, np.int32)
+        s.shadow_lights = wp.array(info, dtype=int, device=device)
         s.shadow_times, s.shadow_size = 1, 1
     else:
         s.shadow_maps = wp.array(shadows.maps, dtype=float, device=device)
+        varying = shadows.varying if shadows.varying is not None else np.ones((1, 1, 1), np.uint8)
+        s.shadow_varying = wp.array(varying, dtype=wp.uint8, device=device)
         s.shadow_faces = wp.array(shadows.faces, dtype=float, device=device)
-        s.shadow_lights = wp.array(shadows.lights, dtype=int, device=device)
+        info = np.zeros((len(shadows.lights), 4), np.int32)
+        info[:, :3] = shadows.lights
+        info[:nl, 3] = still[:nl] if shadows.varying is not None else 0
+        s.shadow_lights = wp.array(info, dtype=int, device=device)
         s.shadow_times, s.shadow_size = shadows.times, shadows.size
     s.shadow_bias = float(options.bias) if options is not None else 1.0
     s.shadow_normal_bias = float(options.normal_bias) if options is not None else 1.5

@@ -51,9 +51,10 @@ class Shading:
 
     Shadow maps (see shadow_lookup.py): shadow_maps (num_maps, S, S) depth along each face's view
     axis; shadow_faces (num_maps, FACE_WIDTH) face_from_cam rotation rows, translation, window,
-    ortho flag; shadow_lights (NL, 3) per light: first map (-1 = casts no shadow), light samples M,
-    faces F. Map of light j, sample m, time b, face f: first + (m * shadow_times + b) * F + f,
-    time b being shutter time (b + 0.5) / shadow_times.
+    ortho flag; shadow_lights (NL, 4) per light: first map (-1 = casts no shadow), light samples M,
+    faces F, 1 when the light holds still (then shadow_varying (num_maps, S, S) flags the texels
+    whose depth changes over the maps' instants). Map of light j, sample m, time b, face f:
+    first + (m * shadow_times + b) * F + f, time b being shutter time (b + 0.5) / shadow_times.
     """
 
     materials: wp.array2d(dtype=float)
@@ -62,6 +63,7 @@ class Shading:
     light_segments: int
     dome: wp.vec3
     shadow_maps: wp.array3d(dtype=float)
+    shadow_varying: wp.array3d(dtype=wp.uint8)
     shadow_faces: wp.array2d(dtype=float)
     shadow_lights: wp.array2d(dtype=int)
     shadow_times: int

@@ -12,7 +12,8 @@ shifts a shadow: maps are rigid with the light. Texel (i, j) of an S×S face cov
 
 Comparisons are averaged, never depths: a light's visibility at time u is the PCF comparison
 averaged over its M samples, linearly interpolated between the two maps whose instants bracket u
-(maps sit at (b + 0.5)/B of the shutter); over a time span it is the mean of point values.
+(maps sit at (b + 0.5)/B of the shutter); over a time span it is the mean of point values, or
+one point value where the light holds still and the texels read never change (shadow_varying).
 """
 
 from __future__ import annotations
@@ -52,9 +53,10 @@ def texel_lit(sh: Shading, f: int, i: int, j: int, depth: float) -> float:
 
 
 @wp.func
-def face_visibility(sh: Shading, f: int, axes: wp.mat33, origin: wp.vec3, p: wp.vec3, n: wp.vec3) -> float:
-    """Visibility of camera-space point p (normal n, facing the light) in face f of a light whose
-    frame is (axes, origin): in [0, 1], or -1 when p is outside the face (try the next face)."""
+def face_coords(sh: Shading, f: int, axes: wp.mat33, origin: wp.vec3, p: wp.vec3, n: wp.vec3) -> wp.vec4:
+    """(texel x, texel y, biased depth, 1) of camera-space point p (normal n, facing the light) in
+    face f of a light whose frame is (axes, origin); w = 0 when p is outside the face. Texel
+    coordinates are continuous, texel centres at integers (bilinear taps at floor and floor + 1)."""
     a = face_rotation(sh, f) * axes
     sample = origin + wp.transpose(axes) * wp.vec3(sh.shadow_faces[f, 9], sh.shadow_faces[f, 10], sh.shadow_faces[f, 11])
     q = a * (p - sample)
@@ -68,11 +70,11 @@ def face_visibility(sh: Shading, f: int, axes: wp.mat33, origin: wp.vec3, p: wp.
     wy = q[1]
     if not ortho:
         if depth <= sh.shadow_faces[f, 17]:
-            return -1.0
+            return wp.vec4(0.0, 0.0, 0.0, 0.0)
         wx = q[0] / depth
         wy = q[1] / depth
     if wx < x0 or wx > x1 or wy < y0 or wy > y1:
-        return -1.0
+        return wp.vec4(0.0, 0.0, 0.0, 0.0)
     size = float(sh.shadow_size)
     texel = (x1 - x0) / size
     if not ortho:
@@ -86,14 +88,23 @@ def face_visibility(sh: Shading, f: int, axes: wp.mat33, origin: wp.vec3, p: wp.
         dn = wp.max(-qn[2], sh.shadow_faces[f, 17])
         wx = qn[0] / dn
         wy = qn[1] / dn
-    tx = (wx - x0) / (x1 - x0) * size - 0.5
-    ty = (y1 - wy) / (y1 - y0) * size - 0.5
+    return wp.vec4((wx - x0) / (x1 - x0) * size - 0.5, (y1 - wy) / (y1 - y0) * size - 0.5, depth, 1.0)
+
+
+@wp.func
+def face_visibility(sh: Shading, f: int, axes: wp.mat33, origin: wp.vec3, p: wp.vec3, n: wp.vec3) -> float:
+    """Visibility of camera-space point p (normal n, facing the light) in face f of a light whose
+    frame is (axes, origin): in [0, 1], or -1 when p is outside the face (try the next face)."""
+    c = face_coords(sh, f, axes, origin, p, n)
+    if c[3] == 0.0:
+        return -1.0
+    depth = c[2]
     r = sh.shadow_pcf
     total = float(0.0)
     for dy in range(-r, r + 1):
         for dx in range(-r, r + 1):
-            fx = tx + float(dx)
-            fy = ty + float(dy)
+            fx = c[0] + float(dx)
+            fy = c[1] + float(dy)
             i = int(wp.floor(fx))
             j = int(wp.floor(fy))
             ax = fx - float(i)
@@ -103,6 +114,45 @@ def face_visibility(sh: Shading, f: int, axes: wp.mat33, origin: wp.vec3, p: wp.
             total += (1.0 - ax) * ay * texel_lit(sh, f, i, j + 1, depth)
             total += ax * ay * texel_lit(sh, f, i + 1, j + 1, depth)
     return total / float((2 * r + 1) * (2 * r + 1))
+
+
+@wp.func
+def face_steady(sh: Shading, f: int, axes: wp.mat33, origin: wp.vec3, p: wp.vec3, n: wp.vec3) -> int:
+    """1 when p's lookup in face f reads only texels whose depth is the same at every instant,
+    0 when one varies, -1 when p is outside the face."""
+    c = face_coords(sh, f, axes, origin, p, n)
+    if c[3] == 0.0:
+        return -1
+    s = sh.shadow_size
+    r = sh.shadow_pcf
+    i0 = int(wp.floor(c[0]))
+    j0 = int(wp.floor(c[1]))
+    for j in range(j0 - r, j0 + r + 2):
+        for i in range(i0 - r, i0 + r + 2):
+            if sh.shadow_varying[f, wp.clamp(j, 0, s - 1), wp.clamp(i, 0, s - 1)] != wp.uint8(0):
+                return 0
+    return 1
+
+
+@wp.func
+def light_steady(sh: Shading, j: int, u: float, p: wp.vec3, n: wp.vec3) -> bool:
+    """True when light j holds still and every sample's lookup from p reads texels that never
+    change over the shutter: its visibility is then the same at every instant."""
+    if sh.shadow_lights[j, 3] != 1:
+        return False
+    first = sh.shadow_lights[j, 0]
+    num_faces = sh.shadow_lights[j, 2]
+    axes = light_axes(sh, j, u)
+    origin = light_vec(sh, j, 4, u)
+    for m in range(sh.shadow_lights[j, 1]):
+        base = first + m * sh.shadow_times * num_faces
+        for f in range(num_faces):
+            st = face_steady(sh, base + f, axes, origin, p, n)
+            if st == 0:
+                return False
+            if st == 1:
+                break
+    return True
 
 
 @wp.func
@@ -156,7 +206,7 @@ def light_visibility(sh: Shading, j: int, u: float, du: float, p: wp.vec3, n: wp
     steps = int(1)
     if du > 0.0 and sh.shadow_times > 1:
         steps = wp.clamp(int(wp.ceil(du * float(sh.shadow_times))), 1, sh.shadow_times)
-    if steps == 1:
+    if steps == 1 or light_steady(sh, j, u, p, n):
         return light_visibility_at(sh, j, u, p, n)
     total = float(0.0)
     for i in range(steps):

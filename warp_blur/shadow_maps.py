@@ -128,13 +128,30 @@ class KeyMesh:
 @dataclass
 class ShadowData:
     """Maps ready for shading: maps (N, S, S) float32, faces (N, FACE_WIDTH), lights (NL, 3) int32
-    [first map or -1, samples, faces], times B."""
+    [first map or -1, samples, faces], times B, and varying (N, S, S) uint8: 1 where a texel's
+    depth is not the same in all B maps of its light sample and face (a span of time over a
+    texel that never varies needs one lookup, not one per instant)."""
 
     maps: np.ndarray
     faces: np.ndarray
     lights: np.ndarray
     times: int
     size: int
+    varying: np.ndarray | None = None
+
+
+def varying_texels(maps: np.ndarray, lights: np.ndarray, times: int) -> np.ndarray:
+    """(N, S, S) uint8 flags of texels whose depth differs between the `times` maps of the same
+    light sample and face (maps of light j, sample m, time b, face f at first + (m B + b) F + f)."""
+    out = np.zeros(maps.shape, np.uint8)
+    for first, samples, faces in lights:
+        if first < 0:
+            continue
+        n = samples * times * faces
+        block = maps[first:first + n].reshape(samples, times, faces, *maps.shape[1:])
+        var = (block != block[:, :1]).any(axis=1, keepdims=True)
+        out[first:first + n] = np.broadcast_to(var, block.shape).reshape(n, *maps.shape[1:])
+    return out
 
 
 def light_frame(row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -672,8 +689,12 @@ class ShadowMaps:
                         faces[idx, 16] = 1.0 if face.ortho else 0.0
                         faces[idx, 17] = face.near if not face.ortho else -FAR
                         idx += 1
+        varying = None
+        if len(times) > 1:
+            varying = varying_texels(maps, info, len(times))
+            self.counters["shadow_texels_varying"] = float(varying.mean()) if varying.size else 0.0
         self._add_time("shadows", time.perf_counter() - t_start)
-        return ShadowData(maps, faces, info, len(times), s)
+        return ShadowData(maps, faces, info, len(times), s, varying)
 
 
 def lit_materials(material_table: np.ndarray, tri_material: np.ndarray) -> bool:
