@@ -61,9 +61,9 @@ class FrameContext:
             self._tables = TriangleTables(s.tri_vertices, s.tri_flags, s.tri_material, s.tri_colors, self.device)
         return self._tables
 
-    def snapshot(self, u: float) -> Snapshot:
+    def snapshot(self, u: float, with_normals: bool = True) -> Snapshot:
         with self.timed("scene"):
-            return self.scene.snapshot(self.shutter.time(u))
+            return self.scene.snapshot(self.shutter.time(u), with_normals)
 
     def static_frame(self) -> Snapshot | None:
         """The centre snapshot when nothing changes over the shutter (geometry, visibility, camera
@@ -74,7 +74,7 @@ class FrameContext:
         for u in MOTION_PROBES:
             if u == 0.5:
                 continue
-            b = self.snapshot(u)
+            b = self.snapshot(u, with_normals=False)
             if not (np.array_equal(a.positions, b.positions) and np.array_equal(a.tri_visible, b.tri_visible)
                     and np.array_equal(a.lights, b.lights)):
                 return None
@@ -119,7 +119,7 @@ class FrameContext:
         if len(snapshots) == 1:
             if self._instant_shadows is None:
                 def sample_at(u: float) -> Sample:
-                    snap = self.scene.snapshot(self.shutter.time(u))
+                    snap = self.scene.snapshot(self.shutter.time(u), with_normals=False)
                     return Sample(snap.positions, snap.tri_visible, snap.lights)
                 self._instant_shadows = self.shadow_maps(sample_at) or False
             if self._instant_shadows:

@@ -406,8 +406,9 @@ class Scene:
         cam_to_world = np.array(self._xf_cache(time).GetLocalToWorldTransform(self.camera.GetPrim()), np.float64)
         return np.linalg.inv(cam_to_world)
 
-    def snapshot(self, time: float) -> Snapshot:
-        """The scene at USD time `time` (within the shutter), in camera space."""
+    def snapshot(self, time: float, with_normals: bool = True) -> Snapshot:
+        """The scene at USD time `time` (within the shutter), in camera space (without vertex
+        normals when with_normals is False: a probe that only compares positions)."""
         cam_from_world = self.cam_from_world(time)
         positions = np.zeros((self.num_vertices, 3), np.float64)
         unit_visible = np.ones(len(self.units), bool)
@@ -424,7 +425,8 @@ class Scene:
             bad = next(u.path for ui, u in enumerate(self.units)
                        if not np.isfinite(positions[self.unit_vertex_offsets[ui]:self.unit_vertex_offsets[ui] + u.num_points * u.num_instances]).all())
             raise InvalidGeometryError(bad, f"non-finite transformed points at time {time}")
-        normals = vertex_normals(positions, self.tri_vertices) if self.any_smooth else np.zeros((0, 3), np.float32)
+        normals = (vertex_normals(positions, self.tri_vertices) if self.any_smooth and with_normals
+                   else np.zeros((0, 3), np.float32))
         if self.headlight:
             lights = headlight_table()
         else:

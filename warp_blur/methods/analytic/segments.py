@@ -19,7 +19,7 @@ from pxr import UsdGeom
 
 from ...camera import Projection
 from ...log import warn_once
-from ...scene import Scene
+from ...scene import Scene, vertex_normals
 
 
 @dataclass
@@ -100,7 +100,7 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
 
     def snap(k: int):
         if k not in snaps:
-            snaps[k] = scene.snapshot(shutter_time(k / m))
+            snaps[k] = scene.snapshot(shutter_time(k / m), with_normals=False)   # normals: kept knots only
         return snaps[k]
 
     def pos(k: int, o: int, n: int) -> np.ndarray:
@@ -148,7 +148,7 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
         dev = np.zeros(n)
         for j in range(m):
             if j not in mids:
-                mids[j] = scene.snapshot(shutter_time((j + 0.5) / m))
+                mids[j] = scene.snapshot(shutter_time((j + 0.5) / m), with_normals=False)
             approx = 0.5 * (pos(j, o, n) + pos(j + 1, o, n))
             dev = np.maximum(dev, screen_distance_px(proj, mids[j].positions[o:o + n], approx))
         max_err = max(max_err, float(dev.max()) if n else 0.0)
@@ -162,7 +162,7 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
     stride = m // k_global
     keep = list(range(0, m + 1, stride))
     positions = np.stack([snap(i).positions for i in keep])
-    normals = np.stack([snap(i).normals for i in keep]) if scene.any_smooth else None
+    normals = np.stack([vertex_normals(snap(i).positions, scene.tri_vertices) for i in keep]) if scene.any_smooth else None
     lights = np.stack([snap(i).lights for i in keep])
     lights_static = bool(all(np.array_equal(snaps[i].lights, snaps[0].lights) for i in snaps))
     tri_e, k0_e, k1_e = [], [], []
