@@ -10,6 +10,8 @@ the near and far planes per sample, so triangles crossing the near plane are cli
 
 from __future__ import annotations
 
+from typing import Any
+
 import warp as wp
 
 from .kernel_types import Geometry, View
@@ -36,17 +38,19 @@ def pixel_ray_direction(view: View, x: float, y: float) -> wp.vec3:
 
 
 @wp.func
-def edge_owns(c: wp.vec3) -> bool:
-    """Tie rule for a sample exactly on an edge: exactly one of c and -c owns it."""
-    if c[0] != 0.0:
-        return c[0] > 0.0
-    if c[1] != 0.0:
-        return c[1] > 0.0
-    return c[2] > 0.0
+def edge_owns(c: Any) -> bool:
+    """Tie rule for a sample exactly on an edge: exactly one of c and -c owns it (generic over
+    float32/float64 vectors, as the analytic coverage functions are)."""
+    zero = type(c[0])(0.0)
+    if c[0] != zero:
+        return c[0] > zero
+    if c[1] != zero:
+        return c[1] > zero
+    return c[2] > zero
 
 
 @wp.func
-def edge_cross(a: wp.vec3, b: wp.vec3, ia: int, ib: int) -> wp.vec3:
+def edge_cross(a: Any, b: Any, ia: int, ib: int):
     """a × b for an edge from vertex ia to ib (eye-relative positions), computed from the
     lower-index vertex as base × (other − base): exactly antisymmetric between the two triangles
     sharing the edge, and with rounding that scales with the edge's length rather than with the

@@ -16,9 +16,9 @@ from ..frame import FrameContext
 from ..kernel_types import Bins, Geometry, Shading, View
 from ..parallel import launch_pixels
 from ..raster import box_rejects, pixel_tile
-from ..rays import edge_cross, entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin
+from ..rays import entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin
 from ..shading import shade_entry_hit
-from .analytic.intervals import edge_coeffs, edge_degenerate, edge_sides, next_breakpoint, quad_roots
+from .analytic.coverage import DEGENERATE_TOL_F32, MAX_SPAN_PIECES, next_breakpoint, piece_covered, prism_edges
 from .analytic.segments import prepare_motion
 
 SCRATCH_BYTES = 64 * 2**20
@@ -36,37 +36,17 @@ def covered_time_bounds(geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> wp.vec
     da = geo.positions[k1, vi[0]] - geo.positions[k0, vi[0]]
     db = geo.positions[k1, vi[1]] - geo.positions[k0, vi[1]]
     dc = geo.positions[k1, vi[2]] - geo.positions[k0, vi[2]]
-    ca = edge_coeffs(d, a0, da, b0, db, vi[0], vi[1])
-    cb = edge_coeffs(d, b0, db, c0, dc, vi[1], vi[2])
-    cc = edge_coeffs(d, c0, dc, a0, da, vi[2], vi[0])
-    ra = quad_roots(ca)
-    rb = quad_roots(cb)
-    rc = quad_roots(cc)
-    dga = edge_degenerate(ca, d, a0, da, b0, db)
-    dgb = edge_degenerate(cb, d, b0, db, c0, dc)
-    dgc = edge_degenerate(cc, d, c0, dc, a0, da)
+    ca, cb, cc, ra, rb, rc, dga, dgb, dgc = prism_edges(d, a0, da, b0, db, c0, dc, vi, DEGENERATE_TOL_F32)
     lo = float(2.0)
     hi = float(-1.0)
     s_prev = float(0.0)
-    for _step in range(7):
+    for _step in range(MAX_SPAN_PIECES):
         if s_prev < 1.0:
             s_next = next_breakpoint(ra, rb, rc, s_prev)
             sm = 0.5 * (s_prev + s_next)
-            pa = a0 + sm * da
-            pb = b0 + sm * db
-            pc = c0 + sm * dc
             # bounds must be conservative: a degenerate edge allows both sides here, and the exact
             # per-sample test decides (with the sharp test's tie rule)
-            e1 = edge_sides(ca, dga, sm, edge_cross(pa, pb, vi[0], vi[1]))
-            e2 = edge_sides(cb, dgb, sm, edge_cross(pb, pc, vi[1], vi[2]))
-            e3 = edge_sides(cc, dgc, sm, edge_cross(pc, pa, vi[2], vi[0]))
-            if dga != 0:
-                e1 = wp.vec2(1.0, 1.0)
-            if dgb != 0:
-                e2 = wp.vec2(1.0, 1.0)
-            if dgc != 0:
-                e3 = wp.vec2(1.0, 1.0)
-            if (e1[0] * e2[0] * e3[0] > 0.0) or (e1[1] * e2[1] * e3[1] > 0.0):
+            if piece_covered(ca, cb, cc, dga, dgb, dgc, a0, da, b0, db, c0, dc, vi, sm, 1) != 0:
                 lo = wp.min(lo, s_prev)
                 hi = wp.max(hi, s_next)
             s_prev = s_next

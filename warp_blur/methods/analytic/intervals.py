@@ -1,11 +1,7 @@
 """Per-pixel coverage intervals of moving triangles, exactly (count pass and fill pass).
 
-An entry's vertices move linearly in camera space over its span, so each edge function at a
-pixel ray, e(s) = d · ((a(s)-o) × (b(s)-o)), is a quadratic in the entry's time s ∈ [0, 1]. Its
-roots split the span into pieces of constant sign; a piece is covered where all three edge
-functions share a sign (either orientation: back faces and orientation flips are allowed, and a
-rotating triangle may cover a pixel in several disjoint pieces).
-
+An entry's vertices move linearly in camera space over its span; where it covers a pixel ray is
+found exactly by coverage.py (edge-function quadratics, their roots, a sign test per piece).
 Each covered piece is then:
 - clipped to the near/far planes: where the entry's vertex depths straddle a plane, the view
   depth is sampled at 9 points and crossings are found by bisection (a *sampled fallback*,
@@ -23,119 +19,14 @@ import warp as wp
 
 from ...kernel_types import Bins, Geometry, Shading, View
 from ...raster import box_rejects, pixel_tile
-from ...rays import edge_cross, edge_owns, hit_from_edges, intersect_triangle, pixel_ray_direction, pixel_ray_origin
+from ...rays import hit_from_edges, intersect_triangle, pixel_ray_direction, pixel_ray_origin
 from ...shading import max_component, shade_entry_hit, shade_entry_hit_span
+from .coverage import DEGENERATE_TOL_F32, MAX_SPAN_PIECES, next_breakpoint, piece_covered, prism_edges
 from .resolve import span_slots
 
 MAX_PIECES = 16
 CLIP_SAMPLES = 8
 SHADE_TOLERANCE = wp.constant(1.0 / 256.0)
-
-
-@wp.func
-def edge_coeffs(d: wp.vec3, a0: wp.vec3, da: wp.vec3, b0: wp.vec3, db: wp.vec3, ia: int, ib: int) -> wp.vec3:
-    """(c0, c1, c2) of e(s) = c0 + c1 s + c2 s² for the edge from a(s) = a0 + s da to b(s)
-    (eye-relative), in the canonical form of `edge_cross`: base × (other − base) from the
-    lower-index vertex, exactly antisymmetric between the triangles sharing the edge."""
-    sign = float(1.0)
-    p0 = a0
-    dp = da
-    q0 = b0
-    dq = db
-    if ia > ib:
-        sign = -1.0
-        p0 = b0
-        dp = db
-        q0 = a0
-        dq = da
-    e0 = q0 - p0
-    de = dq - dp
-    return sign * wp.vec3(wp.dot(d, wp.cross(p0, e0)), wp.dot(d, wp.cross(p0, de) + wp.cross(dp, e0)),
-                          wp.dot(d, wp.cross(dp, de)))
-
-
-@wp.func
-def eval_quad(c: wp.vec3, s: float) -> float:
-    return c[0] + s * (c[1] + s * c[2])
-
-
-@wp.func
-def quad_roots(c: wp.vec3) -> wp.vec2:
-    """Roots of c0 + c1 s + c2 s² inside (0, 1), in any order; 2.0 marks a missing root.
-
-    Uses the cancellation-free form q = -(c1 + sign(c1) sqrt(disc)) / 2, roots q/c2 and c0/q."""
-    r0 = float(2.0)
-    r1 = float(2.0)
-    c0 = c[0]
-    c1 = c[1]
-    c2 = c[2]
-    if c2 == 0.0:
-        if c1 != 0.0:
-            r0 = -c0 / c1
-    else:
-        disc = c1 * c1 - 4.0 * c2 * c0
-        if disc >= 0.0:
-            sq = wp.sqrt(disc)
-            sgn = float(1.0)
-            if c1 < 0.0:
-                sgn = -1.0
-            q = -0.5 * (c1 + sgn * sq)
-            r0 = q / c2
-            if q != 0.0:
-                r1 = c0 / q
-    if not (r0 > 0.0 and r0 < 1.0):
-        r0 = 2.0
-    if not (r1 > 0.0 and r1 < 1.0):
-        r1 = 2.0
-    return wp.vec2(r0, r1)
-
-
-@wp.func
-def edge_degenerate(coef: wp.vec3, d: wp.vec3, a0: wp.vec3, da: wp.vec3, b0: wp.vec3, db: wp.vec3) -> int:
-    """1 when the edge function is zero up to float32 rounding over the whole span: the ray lies
-    in the plane of the edge and the eye at all times (e.g. a pixel on an edge whose plane holds
-    the camera's whole dolly path)."""
-    scale = wp.length(d) * (wp.length(a0) + wp.length(da)) * (wp.length(b0 - a0) + wp.length(db - da))
-    big = wp.max(wp.max(wp.abs(coef[0]), wp.abs(coef[1])), wp.abs(coef[2]))
-    if big <= 4.0e-7 * scale:
-        return 1
-    return 0
-
-
-@wp.func
-def edge_sides(coef: wp.vec3, degenerate: int, s: float, c: wp.vec3) -> wp.vec2:
-    """(positive side ok, negative side ok) of an edge at time s, as 1/0.
-
-    A degenerate edge (see edge_degenerate) or an exact zero is a tie, settled by the same
-    ownership rule as the sharp test on the edge's canonical cross vector c (`edge_cross`), so
-    two triangles sharing the edge cover the pixel once."""
-    val = eval_quad(coef, s)
-    pos = float(0.0)
-    neg = float(0.0)
-    if degenerate != 0 or val == 0.0:
-        if edge_owns(c):
-            pos = 1.0
-        if edge_owns(-c):
-            neg = 1.0
-    elif val > 0.0:
-        pos = 1.0
-    else:
-        neg = 1.0
-    return wp.vec2(pos, neg)
-
-
-@wp.func
-def next_breakpoint(ra: wp.vec2, rb: wp.vec2, rc: wp.vec2, s_prev: float) -> float:
-    """The smallest edge root after s_prev (1 when none): the next time a coverage sign may change."""
-    s_next = float(1.0)
-    for r in range(2):
-        if ra[r] > s_prev and ra[r] < s_next:
-            s_next = ra[r]
-        if rb[r] > s_prev and rb[r] < s_next:
-            s_next = rb[r]
-        if rc[r] > s_prev and rc[r] < s_next:
-            s_next = rc[r]
-    return s_next
 
 
 @wp.func
@@ -349,16 +240,13 @@ def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, 
             return 0
         return emit_pieces(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max, static_constant(geo, sh, e, lights_static),
                            write, base, iv_t, iv_z, iv_rgb)
-    m.u1 = float(k1) / float(geo.num_segments)
-    ca = edge_coeffs(d, m.a0 - o, m.a1 - m.a0, m.b0 - o, m.b1 - m.b0, vi[0], vi[1])
-    cb = edge_coeffs(d, m.b0 - o, m.b1 - m.b0, m.c0 - o, m.c1 - m.c0, vi[1], vi[2])
-    cc = edge_coeffs(d, m.c0 - o, m.c1 - m.c0, m.a0 - o, m.a1 - m.a0, vi[2], vi[0])
-    ra = quad_roots(ca)
-    rb = quad_roots(cb)
-    rc = quad_roots(cc)
-    dga = edge_degenerate(ca, d, m.a0 - o, m.a1 - m.a0, m.b0 - o, m.b1 - m.b0)
-    dgb = edge_degenerate(cb, d, m.b0 - o, m.b1 - m.b0, m.c0 - o, m.c1 - m.c0)
-    dgc = edge_degenerate(cc, d, m.c0 - o, m.c1 - m.c0, m.a0 - o, m.a1 - m.a0)
+    a0 = m.a0 - o
+    b0 = m.b0 - o
+    c0 = m.c0 - o
+    da = m.a1 - m.a0
+    db = m.b1 - m.b0
+    dc = m.c1 - m.c0
+    ca, cb, cc, ra, rb, rc, dga, dgb, dgc = prism_edges(d, a0, da, b0, db, c0, dc, vi, DEGENERATE_TOL_F32)
     # may the view depth leave [near, far]? (the hit is a convex combination of the vertices)
     zmin = wp.min(wp.min(wp.min(-m.a0[2], -m.b0[2]), wp.min(-m.c0[2], -m.a1[2])), wp.min(-m.b1[2], -m.c1[2]))
     zmax = wp.max(wp.max(wp.max(-m.a0[2], -m.b0[2]), wp.max(-m.c0[2], -m.a1[2])), wp.max(-m.b1[2], -m.c1[2]))
@@ -367,17 +255,11 @@ def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, 
         may_clip = 1
     count = int(0)
     s_prev = float(0.0)
-    for _step in range(7):
+    for _step in range(MAX_SPAN_PIECES):
         if s_prev < 1.0:
             s_next = next_breakpoint(ra, rb, rc, s_prev)
             sm = 0.5 * (s_prev + s_next)
-            pa = m.a0 + sm * (m.a1 - m.a0) - o
-            pb = m.b0 + sm * (m.b1 - m.b0) - o
-            pc = m.c0 + sm * (m.c1 - m.c0) - o
-            e1 = edge_sides(ca, dga, sm, edge_cross(pa, pb, vi[0], vi[1]))
-            e2 = edge_sides(cb, dgb, sm, edge_cross(pb, pc, vi[1], vi[2]))
-            e3 = edge_sides(cc, dgc, sm, edge_cross(pc, pa, vi[2], vi[0]))
-            if (e1[0] * e2[0] * e3[0] > 0.0) or (e1[1] * e2[1] * e3[1] > 0.0):
+            if piece_covered(ca, cb, cc, dga, dgb, dgc, a0, da, b0, db, c0, dc, vi, sm, 0) != 0:
                 count += emit_clipped(view, geo, sh, e, m, o, d, s_prev, s_next, may_clip, n_shade_max,
                                       emissive_only, write, base + count, iv_t, iv_z, iv_rgb, fallbacks)
             s_prev = s_next

@@ -1,0 +1,208 @@
+"""When a linearly moving triangle covers a pixel ray: the exact coverage pieces of its span.
+
+Each edge function at the ray, e(s) = d · ((a(s)-o) × (b(s)-o)), is a quadratic in the span's time
+s ∈ [0, 1]. Its roots split the span into pieces of constant sign; a piece is covered where all
+three edge functions share a sign (either orientation: back faces and orientation flips are
+allowed, and a rotating triangle may cover a pixel in several disjoint pieces).
+
+Every function here is generic over the float type (float32 vectors in the renderer's kernels,
+float64 in `coverage_times`), so the precision report runs the renderer's own coverage code in
+both precisions and compares (bench/precision_report.py).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import warp as wp
+
+from ...rays import edge_cross, edge_owns
+
+#: coverage breakpoints per span: up to two roots for each of three edges, so at most 7 pieces
+MAX_SPAN_PIECES = wp.constant(7)
+#: an edge function whose coefficients are all below this × their scale is zero up to rounding
+DEGENERATE_TOL_F32 = wp.constant(4.0e-7)
+DEGENERATE_TOL_F64 = 1.0e-15
+
+
+@wp.func
+def edge_coeffs(d: Any, a0: Any, da: Any, b0: Any, db: Any, ia: int, ib: int):
+    """(c0, c1, c2) of e(s) = c0 + c1 s + c2 s² for the edge from a(s) = a0 + s da to b(s)
+    (eye-relative), in the canonical form of `edge_cross`: base × (other − base) from the
+    lower-index vertex, exactly antisymmetric between the triangles sharing the edge."""
+    sign = type(d[0])(1.0)
+    p0 = a0
+    dp = da
+    q0 = b0
+    dq = db
+    if ia > ib:
+        sign = type(d[0])(-1.0)
+        p0 = b0
+        dp = db
+        q0 = a0
+        dq = da
+    e0 = q0 - p0
+    de = dq - dp
+    return sign * type(d)(wp.dot(d, wp.cross(p0, e0)), wp.dot(d, wp.cross(p0, de) + wp.cross(dp, e0)),
+                          wp.dot(d, wp.cross(dp, de)))
+
+
+@wp.func
+def eval_quad(c: Any, s: Any):
+    return c[0] + s * (c[1] + s * c[2])
+
+
+@wp.func
+def quad_roots(c: Any):
+    """Roots of c0 + c1 s + c2 s² inside (0, 1), in any order; 2 marks a missing root.
+
+    Uses the cancellation-free form q = -(c1 + sign(c1) sqrt(disc)) / 2, roots q/c2 and c0/q."""
+    zero = type(c[0])(0.0)
+    one = type(c[0])(1.0)
+    two = type(c[0])(2.0)
+    r0 = two
+    r1 = two
+    c0 = c[0]
+    c1 = c[1]
+    c2 = c[2]
+    if c2 == zero:
+        if c1 != zero:
+            r0 = -c0 / c1
+    else:
+        disc = c1 * c1 - type(c[0])(4.0) * c2 * c0
+        if disc >= zero:
+            sq = wp.sqrt(disc)
+            sgn = one
+            if c1 < zero:
+                sgn = -one
+            q = type(c[0])(-0.5) * (c1 + sgn * sq)
+            r0 = q / c2
+            if q != zero:
+                r1 = c0 / q
+    if not (r0 > zero and r0 < one):
+        r0 = two
+    if not (r1 > zero and r1 < one):
+        r1 = two
+    return wp.vector(r0, r1)
+
+
+@wp.func
+def edge_degenerate(coef: Any, d: Any, a0: Any, da: Any, b0: Any, db: Any, tol: Any) -> int:
+    """1 when the edge function is zero up to rounding (tol × its scale) over the whole span: the
+    ray lies in the plane of the edge and the eye at all times (e.g. a pixel on an edge whose
+    plane holds the camera's whole dolly path)."""
+    scale = wp.length(d) * (wp.length(a0) + wp.length(da)) * (wp.length(b0 - a0) + wp.length(db - da))
+    big = wp.max(wp.max(wp.abs(coef[0]), wp.abs(coef[1])), wp.abs(coef[2]))
+    if big <= tol * scale:
+        return 1
+    return 0
+
+
+@wp.func
+def edge_sides(coef: Any, degenerate: int, s: Any, c: Any):
+    """(positive side ok, negative side ok) of an edge at time s, as 1/0.
+
+    A degenerate edge (see edge_degenerate) or an exact zero is a tie, settled by the same
+    ownership rule as the sharp test on the edge's canonical cross vector c (`edge_cross`), so
+    two triangles sharing the edge cover the pixel once."""
+    zero = type(s)(0.0)
+    one = type(s)(1.0)
+    val = eval_quad(coef, s)
+    pos = zero
+    neg = zero
+    if degenerate != 0 or val == zero:
+        if edge_owns(c):
+            pos = one
+        if edge_owns(-c):
+            neg = one
+    elif val > zero:
+        pos = one
+    else:
+        neg = one
+    return wp.vector(pos, neg)
+
+
+@wp.func
+def next_breakpoint(ra: Any, rb: Any, rc: Any, s_prev: Any):
+    """The smallest edge root after s_prev (1 when none): the next time a coverage sign may change."""
+    s_next = type(s_prev)(1.0)
+    for r in range(2):
+        if ra[r] > s_prev and ra[r] < s_next:
+            s_next = ra[r]
+        if rb[r] > s_prev and rb[r] < s_next:
+            s_next = rb[r]
+        if rc[r] > s_prev and rc[r] < s_next:
+            s_next = rc[r]
+    return s_next
+
+
+@wp.func
+def prism_edges(d: Any, a0: Any, da: Any, b0: Any, db: Any, c0: Any, dc: Any, vi: wp.vec3i, tol: Any):
+    """The three edge quadratics of a moving triangle at a ray (eye-relative vertices at the span's
+    start a0, b0, c0 and their changes da, db, dc): coefficients, roots in (0, 1) and degeneracy."""
+    ca = edge_coeffs(d, a0, da, b0, db, vi[0], vi[1])
+    cb = edge_coeffs(d, b0, db, c0, dc, vi[1], vi[2])
+    cc = edge_coeffs(d, c0, dc, a0, da, vi[2], vi[0])
+    dga = edge_degenerate(ca, d, a0, da, b0, db, tol)
+    dgb = edge_degenerate(cb, d, b0, db, c0, dc, tol)
+    dgc = edge_degenerate(cc, d, c0, dc, a0, da, tol)
+    return ca, cb, cc, quad_roots(ca), quad_roots(cb), quad_roots(cc), dga, dgb, dgc
+
+
+@wp.func
+def piece_covered(ca: Any, cb: Any, cc: Any, dga: int, dgb: int, dgc: int, a0: Any, da: Any, b0: Any,
+                  db: Any, c0: Any, dc: Any, vi: wp.vec3i, sm: Any, conservative: int) -> int:
+    """1 when the piece whose midpoint is sm is covered (all three edge functions share a sign
+    there). conservative = 1 lets a degenerate edge pass either way (for bounds; the exact
+    per-sample test then decides)."""
+    pa = a0 + sm * da
+    pb = b0 + sm * db
+    pc = c0 + sm * dc
+    e1 = edge_sides(ca, dga, sm, edge_cross(pa, pb, vi[0], vi[1]))
+    e2 = edge_sides(cb, dgb, sm, edge_cross(pb, pc, vi[1], vi[2]))
+    e3 = edge_sides(cc, dgc, sm, edge_cross(pc, pa, vi[2], vi[0]))
+    one = type(sm)(1.0)
+    zero = type(sm)(0.0)
+    if conservative != 0:
+        if dga != 0:
+            e1 = wp.vector(one, one)
+        if dgb != 0:
+            e2 = wp.vector(one, one)
+        if dgc != 0:
+            e3 = wp.vector(one, one)
+    if (e1[0] * e2[0] * e3[0] > zero) or (e1[1] * e2[1] * e3[1] > zero):
+        return 1
+    return 0
+
+
+@wp.kernel(enable_backward=False)
+def coverage_times(p0: wp.array2d(dtype=Any), p1: wp.array2d(dtype=Any), origin: wp.array(dtype=Any),
+                   direction: wp.array(dtype=Any), vi: wp.array(dtype=wp.vec3i), tol: Any,
+                   # outputs
+                   covered: wp.array(dtype=Any), pieces: wp.array(dtype=int)):
+    """Case i: triangle p0[i] (3 camera-space vertices at the span's start) moving linearly to p1[i],
+    ray origin[i] + t direction[i]: the covered share of the span and the number of covered pieces,
+    by the renderer's own coverage functions, in the precision of the arrays."""
+    i = wp.tid()
+    o = origin[i]
+    d = direction[i]
+    a0 = p0[i, 0] - o
+    b0 = p0[i, 1] - o
+    c0 = p0[i, 2] - o
+    da = p1[i, 0] - p0[i, 0]
+    db = p1[i, 1] - p0[i, 1]
+    dc = p1[i, 2] - p0[i, 2]
+    ca, cb, cc, ra, rb, rc, dga, dgb, dgc = prism_edges(d, a0, da, b0, db, c0, dc, vi[i], tol)
+    total = tol * type(tol)(0.0)
+    n = int(0)
+    s_prev = tol * type(tol)(0.0)
+    for _step in range(MAX_SPAN_PIECES):
+        if s_prev < type(tol)(1.0):
+            s_next = next_breakpoint(ra, rb, rc, s_prev)
+            sm = type(tol)(0.5) * (s_prev + s_next)
+            if piece_covered(ca, cb, cc, dga, dgb, dgc, a0, da, b0, db, c0, dc, vi[i], sm, 0) != 0:
+                total = total + (s_next - s_prev)
+                n = n + 1
+            s_prev = s_next
+    covered[i] = total
+    pieces[i] = n
