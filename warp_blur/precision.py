@@ -39,7 +39,10 @@ class CoveragePrecision:
 
 def _run(p0: np.ndarray, p1: np.ndarray, origin: np.ndarray, direction: np.ndarray, vi: np.ndarray,
          double: bool, device: str) -> tuple[np.ndarray, np.ndarray]:
-    vec, scalar, tol = (wp.vec3d, wp.float64, DEGENERATE_TOL_F64) if double else (wp.vec3, wp.float32, DEGENERATE_TOL_F32)
+    if double:
+        vec, scalar, tol = wp.vec3d, wp.float64, DEGENERATE_TOL_F64
+    else:
+        vec, scalar, tol = wp.vec3, wp.float32, DEGENERATE_TOL_F32
     n = len(vi)
     covered = wp.zeros(n, dtype=scalar, device=device)
     pieces = wp.zeros(n, dtype=int, device=device)

@@ -417,7 +417,7 @@ class Scene:
             cache = self._xf_cache(t_prim)
             pts = u.points_at(t_prim)
             m = u.transforms_at(t_prim, cache) @ cam_from_world[None]       # (I, 4, 4) cam_from_local
-            p = np.einsum("nj,ijk->ink", pts, m[:, :3, :3]) + m[:, None, 3, :3]
+            p = pts @ m[:, :3, :3] + m[:, None, 3, :3]    # (I, n, 3): batched matmul, far faster than einsum
             o = self.unit_vertex_offsets[ui]
             positions[o:o + u.num_points * u.num_instances] = p.reshape(-1, 3)
             unit_visible[ui] = u.visible_at(t_prim)

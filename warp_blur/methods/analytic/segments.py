@@ -162,7 +162,9 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
     stride = m // k_global
     keep = list(range(0, m + 1, stride))
     positions = np.stack([snap(i).positions for i in keep])
-    normals = np.stack([vertex_normals(snap(i).positions, scene.tri_vertices) for i in keep]) if scene.any_smooth else None
+    normals = None
+    if scene.any_smooth:
+        normals = np.stack([vertex_normals(snap(i).positions, scene.tri_vertices) for i in keep])
     lights = np.stack([snap(i).lights for i in keep])
     lights_static = bool(all(np.array_equal(snaps[i].lights, snaps[0].lights) for i in snaps))
     tri_e, k0_e, k1_e = [], [], []
