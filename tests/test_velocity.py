@@ -70,3 +70,17 @@ def test_acceptance_beats_the_sharp_image(name):
     vel = wb.render(scene, frame=1, resolution=(128, 96), method="velocity", aovs=())
     sharp = wb.render(scene, frame=1, resolution=(128, 96), samples=1, aovs=())
     assert rmse(vel.rgba, ref) < rmse(sharp.rgba, ref)
+
+
+def test_one_visibility_pass_gives_the_sharp_image_depth_and_motion(scene_path):
+    """The velocity method shades, and writes Z and object motion, from one visibility pass: with
+    motion under half a pixel (no gather) its image is the sharp image at the shutter centre, and
+    its Z and motion AOVs are those of the separate depth/motion pass the other methods use."""
+    path = lit_stage(scene_path(), shutter=(-0.002, 0.002))
+    vel = wb.render(path, frame=1, resolution=RES, method="velocity", shadows="off")
+    assert vel.stats["gather"] is False and vel.stats["velocity_max_px"] > 0
+    centre = wb.render(path, frame=1, resolution=RES, samples=1, shutter=(0.0, 0.0), shadows="off", aovs=())
+    acc = wb.render(path, frame=1, resolution=RES, samples=1, shadows="off")
+    np.testing.assert_array_equal(vel.rgba, centre.rgba)
+    np.testing.assert_array_equal(vel.aovs["Z"], acc.aovs["Z"])
+    np.testing.assert_allclose(vel.aovs["motion"], acc.aovs["motion"], atol=1e-5)

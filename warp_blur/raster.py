@@ -99,21 +99,11 @@ def render_sharp(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, w
     rgba[pix, 3] = rgba[pix, 3] + w * cover
 
 
-@wp.kernel(enable_backward=False)
-def render_depth_motion(view: View, geo: Geometry, bins: Bins, u: float, k_open: int, k_close: int,
-                        first_pixel: int,
-                        # outputs
-                        depth: wp.array(dtype=float), motion: wp.array(dtype=wp.vec2)):
-    """Z (view depth at shutter time u, inf where nothing is seen) and the screen motion in pixels
-    of the seen point from knot k_open to knot k_close (x right, y down; 0 where nothing is seen)."""
-    pix = first_pixel + wp.tid()
-    px = pix % view.width
-    py = pix // view.width
-    x = float(px) + 0.5
-    y = float(py) + 0.5
-    o = pixel_ray_origin(view, x, y)
-    d = pixel_ray_direction(view, x, y)
-    e, alpha, hit = nearest_entry(view, geo, bins, pixel_tile(view, px, py), x, y, o, d, u)
+@wp.func
+def store_depth_motion(view: View, geo: Geometry, e: int, hit: wp.vec4, k_open: int, k_close: int, pix: int,
+                       depth: wp.array(dtype=float), motion: wp.array(dtype=wp.vec2)):
+    """Z and screen motion (pixels, knot k_open to k_close) of the point hit on entry e (e < 0:
+    nothing seen, Z inf and motion 0)."""
     if e < 0:
         depth[pix] = wp.inf
         motion[pix] = wp.vec2(0.0, 0.0)
@@ -131,3 +121,49 @@ def render_depth_motion(view: View, geo: Geometry, bins: Bins, u: float, k_open:
         motion[pix] = wp.vec2(r1[0] - r0[0], r1[1] - r0[1])
     else:
         motion[pix] = wp.vec2(0.0, 0.0)
+
+
+@wp.kernel(enable_backward=False)
+def render_depth_motion(view: View, geo: Geometry, bins: Bins, u: float, k_open: int, k_close: int,
+                        first_pixel: int,
+                        # outputs
+                        depth: wp.array(dtype=float), motion: wp.array(dtype=wp.vec2)):
+    """Z (view depth at shutter time u, inf where nothing is seen) and the screen motion in pixels
+    of the seen point from knot k_open to knot k_close (x right, y down; 0 where nothing is seen)."""
+    pix = first_pixel + wp.tid()
+    px = pix % view.width
+    py = pix // view.width
+    x = float(px) + 0.5
+    y = float(py) + 0.5
+    o = pixel_ray_origin(view, x, y)
+    d = pixel_ray_direction(view, x, y)
+    e, _alpha, hit = nearest_entry(view, geo, bins, pixel_tile(view, px, py), x, y, o, d, u)
+    store_depth_motion(view, geo, e, hit, k_open, k_close, pix, depth, motion)
+
+
+@wp.kernel(enable_backward=False)
+def render_sharp_depth_motion(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, k_open: int,
+                              k_close: int, first_pixel: int,
+                              # outputs
+                              rgba: wp.array2d(dtype=float), depth: wp.array(dtype=float),
+                              motion: wp.array(dtype=wp.vec2)):
+    """render_sharp (weight 1, pixel centres) and render_depth_motion from one visibility pass:
+    the velocity method's sharp image, Z and object motion."""
+    pix = first_pixel + wp.tid()
+    px = pix % view.width
+    py = pix // view.width
+    x = float(px) + 0.5
+    y = float(py) + 0.5
+    o = pixel_ray_origin(view, x, y)
+    d = pixel_ray_direction(view, x, y)
+    e, alpha, hit = nearest_entry(view, geo, bins, pixel_tile(view, px, py), x, y, o, d, u)
+    color = sh.dome
+    cover = float(0.0)
+    if e >= 0:
+        color = shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
+        cover = 1.0
+    rgba[pix, 0] = rgba[pix, 0] + color[0]
+    rgba[pix, 1] = rgba[pix, 1] + color[1]
+    rgba[pix, 2] = rgba[pix, 2] + color[2]
+    rgba[pix, 3] = rgba[pix, 3] + cover
+    store_depth_motion(view, geo, e, hit, k_open, k_close, pix, depth, motion)

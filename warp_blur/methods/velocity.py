@@ -31,7 +31,7 @@ import warp as wp
 from ..device_data import make_bins, make_geometry
 from ..frame import FrameContext
 from ..parallel import launch_pixels
-from ..raster import render_depth_motion
+from ..raster import render_depth_motion, render_sharp_depth_motion
 from ..scene import vertex_normals
 
 SOFT_Z = wp.constant(0.01)
@@ -136,6 +136,17 @@ def normals_from_depth(ctx: FrameContext, depth: np.ndarray) -> np.ndarray:
     return np.nan_to_num(n)
 
 
+def box_blur(a: np.ndarray, r: int, axis: int) -> np.ndarray:
+    """Mean over a (2r+1)-wide window along `axis`, zeros beyond the edges (a convolution with a
+    box kernel, mode "same"), from cumulative sums."""
+    a = np.moveaxis(a, axis, 0)
+    n = a.shape[0]
+    c = np.concatenate([np.zeros((1,) + a.shape[1:]), np.cumsum(a, axis=0)])
+    i = np.arange(n)
+    out = (c[np.minimum(i + r + 1, n)] - c[np.maximum(i - r, 0)]) / (2 * r + 1)
+    return np.moveaxis(out, 0, axis)
+
+
 def soft_edge_velocity(v: np.ndarray, radius: float) -> np.ndarray:
     """Velocity spread past silhouettes: half-res box blur of (v·mask, mask), mask divided out."""
     if radius <= 0:
@@ -147,11 +158,9 @@ def soft_edge_velocity(v: np.ndarray, radius: float) -> np.ndarray:
     low = pad.reshape(h2, 2, w2, 2, 2).mean(axis=(1, 3))
     mask = (np.linalg.norm(low, axis=-1) > 1e-3).astype(np.float64)
     r = max(1, int(round(radius / 2)))
-    k = np.ones(2 * r + 1) / (2 * r + 1)
 
     def blur(a):
-        a = np.apply_along_axis(lambda x: np.convolve(x, k, mode="same"), 0, a)
-        return np.apply_along_axis(lambda x: np.convolve(x, k, mode="same"), 1, a)
+        return box_blur(box_blur(a, r, 0), r, 1)
     num = np.stack([blur(low[..., 0] * mask), blur(low[..., 1] * mask)], -1)
     den = blur(mask)[..., None]
     soft = np.where(den > 1e-6, num / np.maximum(den, 1e-6), 0.0)
@@ -194,10 +203,9 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
             forward = np.einsum("ij,ij->i", n, knots[2] - knots[0]) > 0
             center.positions = np.where(forward[:, None], knots[2], knots[0])
             knots[1] = center.positions
-    # sharp colour at the shutter centre (possibly with extruded trails)
+    # sharp colour at the shutter centre (possibly with extruded trails), depth and object motion:
+    # one visibility pass (two when spatial samples need the colour at several sub-pixel positions)
     sharp = wp.zeros((ctx.num_pixels, 4), dtype=float, device=dev)
-    ctx.sharp_pass(center, 1.0, sharp)
-    # depth and object motion from the same visibility
     positions = np.stack(knots)
     normals = np.stack([center.normals] * 3) if ctx.scene.any_smooth else None
     tris = np.nonzero(center.tri_visible)[0].astype(np.int32)
@@ -207,9 +215,19 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
     view, b = ctx.view(tile_bins), make_bins(tile_bins, dev)
     depth_w = wp.zeros(ctx.num_pixels, dtype=float, device=dev)
     motion_w = wp.zeros(ctx.num_pixels, dtype=wp.vec2, device=dev)
+    u = ctx.shutter_fraction(center.time)
+    if s.spatial_samples == 1:
+        sh = ctx.shading([center])
+        with ctx.timed("render"):
+            launch_pixels(render_sharp_depth_motion, ctx.num_pixels,
+                          lambda first, _n: [view, geo, sh, b, u, 0, 2, first, sharp, depth_w, motion_w], dev,
+                          s.threads)
+    else:
+        ctx.sharp_pass(center, 1.0, sharp)
+        with ctx.timed("velocity"):
+            launch_pixels(render_depth_motion, ctx.num_pixels,
+                          lambda first, _n: [view, geo, b, u, 0, 2, first, depth_w, motion_w], dev, s.threads)
     with ctx.timed("velocity"):
-        launch_pixels(render_depth_motion, ctx.num_pixels,
-                      lambda first, _n: [view, geo, b, 0.5, 0, 2, first, depth_w, motion_w], dev, s.threads)
         depth = depth_w.numpy().reshape(h, w)
         velocity = motion_w.numpy().reshape(h, w, 2).astype(np.float64)
         if camera_moves:
