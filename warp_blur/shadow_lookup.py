@@ -206,8 +206,11 @@ def light_visibility(sh: Shading, j: int, u: float, du: float, p: wp.vec3, n: wp
     steps = int(1)
     if du > 0.0 and sh.shadow_times > 1:
         steps = wp.clamp(int(wp.ceil(du * float(sh.shadow_times))), 1, sh.shadow_times)
-    if steps == 1 or light_steady(sh, j, u, p, n):
+    if steps == 1:
         return light_visibility_at(sh, j, u, p, n)
+    if light_steady(sh, j, u, p, n):
+        # the same at every instant: look up at the first map's own instant (one map, no blend)
+        return light_visibility_at(sh, j, 0.5 / float(sh.shadow_times), p, n)
     total = float(0.0)
     for i in range(steps):
         total += light_visibility_at(sh, j, u - 0.5 * du + du * (float(i) + 0.5) / float(steps), p, n)
