@@ -53,3 +53,22 @@ def test_acceptance_reference(name):
     r = wb.render(os.path.join(ACCEPTANCE, "scenes", f"{name}.usda"), frame=1, resolution=(128, 96),
                   method="stochastic", samples=16, aovs=())
     assert rmse(r.rgba, ref) <= 0.03
+
+
+def test_static_pixels_take_the_exact_expectation_under_a_moving_shadow(scene_path):
+    """Where no sample sees a moving triangle and the lights hold still, the pixel is shaded once
+    with the samples' exact expectation: the same for every seed, equal to the analytic method's
+    static pixels, a moving shadow's time average included. The occluder passes above the
+    camera's view, so every pixel sees only still geometry."""
+    from scenes import shadow_stage
+    path = shadow_stage(scene_path(), occluder_samples={0.5: (-1.0, 6.0, 0.0), 1.5: (1.0, 6.0, 0.0)})
+    kw = dict(frame=1, resolution=(96, 72), aovs=(), shadows="direct", shadow_map_size=256)
+    a = wb.render(path, method="stochastic", samples=8, seed=1, **kw).rgba
+    b = wb.render(path, method="stochastic", samples=8, seed=2, **kw).rgba
+    exact = wb.render(path, method="analytic", **kw).rgba
+    np.testing.assert_array_equal(a, b)
+    assert np.abs(a - exact).max() < 1e-5
+    lum = a[..., :3].mean(axis=-1)
+    lit = np.median(lum[a[..., 3] == 1.0])
+    # the moving shadow is there, as a time average (darker than lit, lighter than the umbra)
+    assert ((lum < 0.9 * lit) & (lum > 0.1 * lit) & (a[..., 3] == 1.0)).sum() > 20

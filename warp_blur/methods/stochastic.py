@@ -4,7 +4,10 @@ one per stratum [j/N, (j+1)/N), jittered per pixel from a seeded hash: determini
 Triangles move as in the analytic method (the same motion segments). For each triangle binned to
 the pixel's tile, the time bounds when it can cover the pixel are found from its edge quadratics
 (first and last covered instants), and only the samples whose strata meet those bounds are
-tested; each sample keeps its nearest hit, then is shaded at its own instant.
+tested; each sample keeps its nearest hit, then is shaded at its own instant. Static triangles
+cover every sample alike, so only the nearest is kept; a pixel where no sample sees a moving
+triangle, under still lights, is shaded once with the samples' exact expectation (a moving
+shadow averaged over the shutter): static content costs what a sharp render costs.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from ..kernel_types import Bins, Geometry, Shading, View
 from ..parallel import launch_pixels
 from ..raster import box_rejects, pixel_tile
 from ..rays import entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin
-from ..shading import shade_entry_hit
+from ..shading import shade_entry_hit, shade_entry_hit_span
 from .analytic.coverage import DEGENERATE_TOL_F32, MAX_SPAN_PIECES, next_breakpoint, piece_covered, prism_edges
 from .analytic.segments import prepare_motion
 
@@ -57,7 +60,7 @@ def covered_time_bounds(geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> wp.vec
 
 @wp.kernel(enable_backward=False)
 def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, bins: Bins, sub: wp.vec2, n: int, seed: int,
-                             weight: float, first_pixel: int,
+                             lights_static: int, weight: float, first_pixel: int,
                              # outputs (scratch rows are per band: row = tid)
                              times: wp.array2d(dtype=float), best_z: wp.array2d(dtype=float),
                              best_e: wp.array2d(dtype=int), rgba: wp.array2d(dtype=float)):
@@ -75,6 +78,9 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, bins: Bins,
         best_z[tid, j] = wp.inf
         best_e[tid, j] = -1
     tile = pixel_tile(view, px, py)
+    # the nearest static surface covers every sample; moving entries are tracked per sample
+    e_static = int(-1)
+    z_static = float(wp.inf)
     for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
         e = bins.tile_entries[i]
         vi = geo.tri_vertices[geo.entry_tri[e]]
@@ -85,11 +91,9 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, bins: Bins,
         if k0 == k1:
             hit = intersect_triangle(o, d, geo.positions[k0, vi[0]], geo.positions[k0, vi[1]], geo.positions[k0, vi[2]],
                                      vi)
-            if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
-                for j in range(n):
-                    if hit[1] < best_z[tid, j]:
-                        best_z[tid, j] = hit[1]
-                        best_e[tid, j] = e
+            if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far and hit[1] < z_static:
+                z_static = hit[1]
+                e_static = e
         else:
             bounds = covered_time_bounds(geo, e, o, d)
             if bounds[0] <= bounds[1]:
@@ -106,29 +110,50 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, bins: Bins,
                         if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far and hit[1] < best_z[tid, j]:
                             best_z[tid, j] = hit[1]
                             best_e[tid, j] = e
+    moving_seen = int(0)
+    for j in range(n):
+        if best_e[tid, j] >= 0 and best_z[tid, j] < z_static:
+            moving_seen = 1
+        else:
+            best_e[tid, j] = e_static
     color = wp.vec3(0.0, 0.0, 0.0)
     cover = float(0.0)
-    for j in range(n):
-        e = best_e[tid, j]
-        if e >= 0:
-            u = times[tid, j]
-            vi = geo.tri_vertices[geo.entry_tri[e]]
-            alpha = float(0.0)
-            if geo.entry_k0[e] != geo.entry_k1[e]:
-                u0 = float(geo.entry_k0[e]) / float(geo.num_segments)
-                u1 = float(geo.entry_k1[e]) / float(geo.num_segments)
-                alpha = (u - u0) / (u1 - u0)
-            hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
-                                     entry_vertex(geo, e, vi[2], alpha), vi)
-            color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
-            cover = cover + 1.0
+    if moving_seen == 0 and lights_static != 0:
+        # every sample sees the same static surface (or nothing) under still lights: the samples'
+        # expectation exactly, with a moving shadow averaged over the shutter (one lookup where
+        # the shadow never changes), instead of n shadings
+        if e_static >= 0:
+            vi = geo.tri_vertices[geo.entry_tri[e_static]]
+            ks = geo.entry_k0[e_static]
+            hit = intersect_triangle(o, d, geo.positions[ks, vi[0]], geo.positions[ks, vi[1]], geo.positions[ks, vi[2]],
+                                     vi)
+            color = shade_entry_hit_span(view, geo, sh, e_static, 0.0, 0.5, 1.0, o, d, hit)
+            cover = 1.0
         else:
-            color = color + sh.dome
-    w = weight / float(n)
-    rgba[pix, 0] = rgba[pix, 0] + w * color[0]
-    rgba[pix, 1] = rgba[pix, 1] + w * color[1]
-    rgba[pix, 2] = rgba[pix, 2] + w * color[2]
-    rgba[pix, 3] = rgba[pix, 3] + w * cover
+            color = sh.dome
+    else:
+        for j in range(n):
+            e = best_e[tid, j]
+            if e >= 0:
+                u = times[tid, j]
+                vi = geo.tri_vertices[geo.entry_tri[e]]
+                alpha = float(0.0)
+                if geo.entry_k0[e] != geo.entry_k1[e]:
+                    u0 = float(geo.entry_k0[e]) / float(geo.num_segments)
+                    u1 = float(geo.entry_k1[e]) / float(geo.num_segments)
+                    alpha = (u - u0) / (u1 - u0)
+                hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
+                                         entry_vertex(geo, e, vi[2], alpha), vi)
+                color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
+                cover = cover + 1.0
+            else:
+                color = color + sh.dome
+        color = color / float(n)
+        cover = cover / float(n)
+    rgba[pix, 0] = rgba[pix, 0] + weight * color[0]
+    rgba[pix, 1] = rgba[pix, 1] + weight * color[1]
+    rgba[pix, 2] = rgba[pix, 2] + weight * color[2]
+    rgba[pix, 3] = rgba[pix, 3] + weight * cover
 
 
 def render_stochastic(ctx: FrameContext) -> np.ndarray:
@@ -139,12 +164,13 @@ def render_stochastic(ctx: FrameContext) -> np.ndarray:
     rgba = wp.zeros((ctx.num_pixels, 4), dtype=float, device=dev)
     subs = ctx.sub_pixel_offsets()
     max_band = max(1, SCRATCH_BYTES // (12 * n))
+    lights_static = 1 if plan.lights_static else 0
     for si, sub in enumerate(subs):
         sub_v = wp.vec2(*sub)
         seed = (s.resolved_seed * 7919 + si * 104729) & 0x7FFFFFFF
 
         def inputs(first: int, count: int) -> list:
-            return [view, geo, sh, bins, sub_v, n, seed, 1.0 / len(subs), first,
+            return [view, geo, sh, bins, sub_v, n, seed, lights_static, 1.0 / len(subs), first,
                     wp.empty((count, n), dtype=float, device=dev), wp.empty((count, n), dtype=float, device=dev),
                     wp.empty((count, n), dtype=int, device=dev), rgba]
 
