@@ -53,6 +53,22 @@ def nearest_entry(view: View, geo: Geometry, bins: Bins, tile: int, sx: float, s
 
 
 @wp.func
+def centre_ray(view: View, pix: int):
+    """(origin, direction) of the ray through pixel pix's centre (camera space)."""
+    x = float(pix % view.width) + 0.5
+    y = float(pix // view.width) + 0.5
+    return pixel_ray_origin(view, x, y), pixel_ray_direction(view, x, y)
+
+
+@wp.func
+def nearest_at_centre(view: View, geo: Geometry, bins: Bins, pix: int, o: wp.vec3, d: wp.vec3, u: float):
+    """nearest_entry for the centre ray (o, d) of pixel pix, from its tile's entries."""
+    px = pix % view.width
+    py = pix // view.width
+    return nearest_entry(view, geo, bins, pixel_tile(view, px, py), float(px) + 0.5, float(py) + 0.5, o, d, u)
+
+
+@wp.func
 def to_raster(view: View, p: wp.vec3) -> wp.vec3:
     """Camera-space point -> (raster x, raster y, 1), or (0, 0, 0) when it is not in front of the eye."""
     wx = p[0]
@@ -131,13 +147,8 @@ def render_depth_motion(view: View, geo: Geometry, bins: Bins, u: float, k_open:
     """Z (view depth at shutter time u, inf where nothing is seen) and the screen motion in pixels
     of the seen point from knot k_open to knot k_close (x right, y down; 0 where nothing is seen)."""
     pix = first_pixel + wp.tid()
-    px = pix % view.width
-    py = pix // view.width
-    x = float(px) + 0.5
-    y = float(py) + 0.5
-    o = pixel_ray_origin(view, x, y)
-    d = pixel_ray_direction(view, x, y)
-    e, _alpha, hit = nearest_entry(view, geo, bins, pixel_tile(view, px, py), x, y, o, d, u)
+    o, d = centre_ray(view, pix)
+    e, _alpha, hit = nearest_at_centre(view, geo, bins, pix, o, d, u)
     store_depth_motion(view, geo, e, hit, k_open, k_close, pix, depth, motion)
 
 
@@ -150,13 +161,8 @@ def render_sharp_depth_motion(view: View, geo: Geometry, sh: Shading, bins: Bins
     """render_sharp (weight 1, pixel centres) and render_depth_motion from one visibility pass:
     the velocity method's sharp image, Z and object motion."""
     pix = first_pixel + wp.tid()
-    px = pix % view.width
-    py = pix // view.width
-    x = float(px) + 0.5
-    y = float(py) + 0.5
-    o = pixel_ray_origin(view, x, y)
-    d = pixel_ray_direction(view, x, y)
-    e, alpha, hit = nearest_entry(view, geo, bins, pixel_tile(view, px, py), x, y, o, d, u)
+    o, d = centre_ray(view, pix)
+    e, alpha, hit = nearest_at_centre(view, geo, bins, pix, o, d, u)
     color = sh.dome
     cover = float(0.0)
     if e >= 0:

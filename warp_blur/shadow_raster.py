@@ -8,8 +8,7 @@ from __future__ import annotations
 import warp as wp
 
 from .kernel_types import Bins, Geometry, View
-from .raster import nearest_entry, pixel_tile
-from .rays import pixel_ray_direction, pixel_ray_origin
+from .raster import centre_ray, nearest_at_centre
 
 
 @wp.kernel(enable_backward=False)
@@ -20,13 +19,8 @@ def render_shadow_texels(view: View, geo: Geometry, bins: Bins, first_pixel: int
     along the face's view axis (inf where nothing is), the triangle seen and its barycentrics of
     vertices b and c (the warp's control points follow that surface point)."""
     pix = first_pixel + wp.tid()
-    px = pix % view.width
-    py = pix // view.width
-    x = float(px) + 0.5
-    y = float(py) + 0.5
-    o = pixel_ray_origin(view, x, y)
-    d = pixel_ray_direction(view, x, y)
-    e, _alpha, hit = nearest_entry(view, geo, bins, pixel_tile(view, px, py), x, y, o, d, 0.0)
+    o, d = centre_ray(view, pix)
+    e, _alpha, hit = nearest_at_centre(view, geo, bins, pix, o, d, 0.0)
     if e < 0:
         depth[pix] = wp.inf
         tri[pix] = -1
