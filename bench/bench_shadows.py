@@ -90,7 +90,7 @@ def main() -> None:
                                 "shadow_s": result.stats["time"].get("shadows", 0.0),
                                 "maps": result.stats.get("shadow_maps_rendered", 0) + result.stats.get("shadow_maps_warped", 0)})
     if method_rows:
-        print(f"\nMethods with shadows (defaults: 512² maps, 8 map instants, 1 light sample)")
+        print("\nMethods with shadows (defaults: 512² maps, 8 map instants, 1 light sample)")
         print(table(method_rows, ["method", "shadows", "maps", "shadow_s", "frame_s"]))
 
     os.makedirs(OUT, exist_ok=True)

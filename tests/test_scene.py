@@ -132,7 +132,7 @@ def test_large_world_coordinates_stay_precise(scene_path):
 def test_messy_usd_references_payloads_instances_matrices(tmp_path, scene_path):
     """References, payloads, instanceable prims, xformOp:transform matrices, a subdivision mesh
     (rendered as its cage) and an unsupported prim (warned about once) compose as USD says."""
-    from authoring import add_camera, add_mesh, new_stage
+    from authoring import add_camera, new_stage
     from pxr import Gf, Usd, UsdGeom
 
     from warp_blur import log
