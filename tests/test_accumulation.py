@@ -47,3 +47,33 @@ def test_acceptance_reference(name):
     r = wb.render(os.path.join(ACCEPTANCE, "scenes", f"{name}.usda"), frame=1, resolution=(128, 96),
                   method="accumulation", samples=128)
     assert rmse(r.rgba, ref) <= 0.002
+
+
+@pytest.mark.parametrize("spatial", [1, 2])
+def test_still_tiles_rendered_once_equal_every_instant(scene_path, monkeypatch, spatial):
+    """Under still lights and no shadow maps, tiles no moving triangle touches at any instant are
+    rendered once; the image equals rendering every pixel at every instant."""
+    from scenes import shadow_stage
+    import warp_blur.methods.accumulation as accumulation
+    # a lit ground under a light that casts no shadow, and a dark square crossing above it
+    path = shadow_stage(scene_path(), shadows=False, occluder_samples={0.5: (-1.0, 1.0, 0.0), 1.5: (1.0, 1.0, 0.0)})
+    kw = dict(frame=1, resolution=(128, 96), samples=16, aovs=(), spatial_samples=spatial)
+    once = wb.render(path, **kw)
+    assert 0.2 < once.stats["accumulation_still_pixels"] < 0.9
+    monkeypatch.setattr(accumulation, "STATIC_TILES", False)
+    every = wb.render(path, **kw)
+    assert "accumulation_still_pixels" not in every.stats
+    assert np.abs(once.rgba - every.rgba).max() < 1e-6
+    sharp = wb.render(path, frame=1, resolution=(128, 96), samples=1, aovs=(), spatial_samples=spatial)
+    assert rmse(once.rgba, sharp.rgba) > 0.01   # there is blur
+
+
+def test_every_instant_rendered_where_shadows_or_lights_can_change(scene_path):
+    from scenes import lit_stage, shadow_stage
+    lit = lit_stage(scene_path(), shutter=(-0.5, 0.5))
+    assert "accumulation_still_pixels" not in wb.render(lit, frame=1, resolution=(64, 48), samples=8, aovs=()).stats
+    moving_light = shadow_stage(scene_path(), light="sphere", light_size=0.2, shadows=False,
+                                light_samples={0.5: (-0.3, 3, 0), 1.5: (0.3, 3, 0)},
+                                occluder_samples={0.5: (-1, 1, 0), 1.5: (1, 1, 0)})
+    r = wb.render(moving_light, frame=1, resolution=(64, 48), samples=8, aovs=())
+    assert "accumulation_still_pixels" not in r.stats

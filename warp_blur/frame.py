@@ -15,7 +15,7 @@ from .camera import Projection
 from .device_data import TriangleTables, make_bins, make_geometry, make_shading, make_view
 from .kernel_types import Geometry
 from .parallel import launch_pixels
-from .raster import render_depth_motion, render_sharp
+from .raster import render_depth_motion, render_sharp, render_sharp_listed
 from .scene import Scene, Snapshot
 from .settings import RenderSettings
 from .shadow_maps import Sample, ShadowMaps, ShadowOptions, lit_materials
@@ -95,14 +95,20 @@ class FrameContext:
                              bias=s.shadow_bias, normal_bias=s.shadow_normal_bias, pcf=s.shadow_pcf,
                              memory_mb=s.shadow_memory_mb)
 
+    def may_cast_shadows(self) -> bool:
+        """False when no shadow map can be needed: shadows off, the headlight, no lights, or only
+        emissive materials (a light whose shadows are disabled is found by ShadowMaps itself)."""
+        scene = self.scene
+        if self.settings.resolved_shadows == "off" or scene.headlight or not scene.light_prims:
+            return False
+        return lit_materials(scene.material_table, scene.tri_material)
+
     def shadow_maps(self, sample_at) -> ShadowMaps | None:
         """Shadow maps over this frame's shutter, the scene at shutter time u given by
         sample_at(u) -> Sample; None when no light can cast a visible shadow (no time spent)."""
+        if not self.may_cast_shadows():
+            return None
         scene = self.scene
-        if self.settings.resolved_shadows == "off" or scene.headlight or not scene.light_prims:
-            return None
-        if not lit_materials(scene.material_table, scene.tri_material):
-            return None
         sm = ShadowMaps(self.tables, scene.tri_vertices, scene.tri_object, sample_at,
                         self.shadow_options(), self.device, self.settings.threads, self.timings, self.counters)
         return sm if sm.active else None
@@ -163,16 +169,24 @@ class FrameContext:
         bins = self.bin(positions, tris, k, k)
         return make_geometry(self.tables, positions, normals, tris, k, k), bins
 
-    def sharp_pass(self, snapshot: Snapshot, weight: float, rgba: wp.array) -> None:
-        """rgba += weight × the sharp image of one instant."""
+    def sharp_pass(self, snapshot: Snapshot, weight: float, rgba: wp.array, pixels: np.ndarray | None = None) -> None:
+        """rgba += weight × the sharp image of one instant (only at `pixels`, flat indices, if given)."""
+        if pixels is not None and len(pixels) == 0:
+            return
         geo, bins = self.static_geometry([snapshot], 0)
         sh = self.shading([snapshot])
         view, b = self.view(bins), make_bins(bins, self.device)
         u = self.shutter_fraction(snapshot.time)   # static entries ignore it; shadow maps shared over time use it
         with self.timed("render"):
-            launch_pixels(render_sharp, self.num_pixels,
-                          lambda first, _n: [view, geo, sh, b, u, weight, first, rgba],
-                          self.device, self.settings.threads)
+            if pixels is None:
+                launch_pixels(render_sharp, self.num_pixels,
+                              lambda first, _n: [view, geo, sh, b, u, weight, first, rgba],
+                              self.device, self.settings.threads)
+            else:
+                listed = wp.array(pixels.astype(np.int32), dtype=int, device=self.device)
+                launch_pixels(render_sharp_listed, len(pixels),
+                              lambda first, _n: [view, geo, sh, b, u, weight, listed, first, rgba],
+                              self.device, self.settings.threads)
 
     def depth_motion(self, snapshots: list[Snapshot] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Z (H, W) and motion (H, W, 2) AOVs of the surface seen at the shutter centre."""

@@ -84,12 +84,10 @@ def to_raster(view: View, p: wp.vec3) -> wp.vec3:
     return wp.vec3(rx, ry, 1.0)
 
 
-@wp.kernel(enable_backward=False)
-def render_sharp(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float, first_pixel: int,
-                 # outputs
-                 rgba: wp.array2d(dtype=float)):
-    """Add weight × (the sharp image at shutter time u) to rgba (H*W, 4)."""
-    pix = first_pixel + wp.tid()
+@wp.func
+def sharp_pixel(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float, pix: int,
+                rgba: wp.array2d(dtype=float)):
+    """rgba[pix] += weight × pixel pix of the sharp image at shutter time u (n×n sub-samples)."""
     px = pix % view.width
     py = pix // view.width
     tile = pixel_tile(view, px, py)
@@ -113,6 +111,23 @@ def render_sharp(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, w
     rgba[pix, 1] = rgba[pix, 1] + w * color[1]
     rgba[pix, 2] = rgba[pix, 2] + w * color[2]
     rgba[pix, 3] = rgba[pix, 3] + w * cover
+
+
+@wp.kernel(enable_backward=False)
+def render_sharp(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float, first_pixel: int,
+                 # outputs
+                 rgba: wp.array2d(dtype=float)):
+    """Add weight × (the sharp image at shutter time u) to rgba (H*W, 4)."""
+    sharp_pixel(view, geo, sh, bins, u, weight, first_pixel + wp.tid(), rgba)
+
+
+@wp.kernel(enable_backward=False)
+def render_sharp_listed(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float,
+                        pixels: wp.array(dtype=int), first: int,
+                        # outputs
+                        rgba: wp.array2d(dtype=float)):
+    """render_sharp for the listed pixels only (pixels[first + tid])."""
+    sharp_pixel(view, geo, sh, bins, u, weight, pixels[first + wp.tid()], rgba)
 
 
 @wp.func
