@@ -68,12 +68,30 @@ def test_still_tiles_rendered_once_equal_every_instant(scene_path, monkeypatch, 
     assert rmse(once.rgba, sharp.rgba) > 0.01   # there is blur
 
 
-def test_every_instant_rendered_where_shadows_or_lights_can_change(scene_path):
-    from scenes import lit_stage, shadow_stage
-    lit = lit_stage(scene_path(), shutter=(-0.5, 0.5))
-    assert "accumulation_still_pixels" not in wb.render(lit, frame=1, resolution=(64, 48), samples=8, aovs=()).stats
-    moving_light = shadow_stage(scene_path(), light="sphere", light_size=0.2, shadows=False,
-                                light_samples={0.5: (-0.3, 3, 0), 1.5: (0.3, 3, 0)},
-                                occluder_samples={0.5: (-1, 1, 0), 1.5: (1, 1, 0)})
-    r = wb.render(moving_light, frame=1, resolution=(64, 48), samples=8, aovs=())
+@pytest.mark.parametrize("case", ["moving_shadow_direct", "moving_shadow_warped", "moving_light"])
+def test_still_tiles_reshaded_per_instant_equal_every_instant(scene_path, monkeypatch, case):
+    """Where shadows or lights change, still tiles find their surfaces once and are shaded at
+    every instant with that instant's lights and shadow maps: equal to rendering every pixel."""
+    from scenes import shadow_stage
+    import warp_blur.methods.accumulation as accumulation
+    mover = {0.5: (-1.0, 1.0, 0.0), 1.5: (1.0, 1.0, 0.0)}
+    kw = dict(frame=1, resolution=(96, 72), samples=12, aovs=(), shadow_map_size=256)
+    if case == "moving_light":
+        path = shadow_stage(scene_path(), light="sphere", light_size=0.2, occluder_samples=mover,
+                            light_samples={0.5: (-0.5, 3, 0), 1.5: (0.5, 3, 0)})
+        kw["shadows"] = "direct"
+    else:
+        path = shadow_stage(scene_path(), occluder_samples=mover)
+        kw["shadows"] = "direct" if case.endswith("direct") else "warped"
+    once = wb.render(path, **kw)
+    assert once.stats["accumulation_still_shading"] == "per instant"
+    assert 0.2 < once.stats["accumulation_still_pixels"] < 0.95
+    monkeypatch.setattr(accumulation, "STATIC_TILES", False)
+    every = wb.render(path, **kw)
+    assert np.abs(once.rgba - every.rgba).max() < 1e-5
+
+
+def test_nothing_still_renders_every_instant(scene_path):
+    path = two_quads_stage(scene_path())
+    r = wb.render(path, frame=1, resolution=(64, 48), samples=8, aovs=())
     assert "accumulation_still_pixels" not in r.stats

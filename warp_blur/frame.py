@@ -15,7 +15,7 @@ from .camera import Projection
 from .device_data import TriangleTables, make_bins, make_geometry, make_shading, make_view
 from .kernel_types import Geometry
 from .parallel import launch_pixels
-from .raster import render_depth_motion, render_sharp, render_sharp_listed
+from .raster import render_depth_motion, render_sharp, shade_recorded
 from .scene import Scene, Snapshot
 from .settings import RenderSettings
 from .shadow_maps import Sample, ShadowMaps, ShadowOptions, lit_materials
@@ -25,6 +25,17 @@ from .stage import Shutter
 #: Shutter fractions probed to decide that nothing moves. Open, centre and close alone alias
 #: (a full turn per half shutter looks static); the irregular extra probes make that unlikely.
 MOTION_PROBES = (0.0, 0.1234, 0.25, 0.5, 0.6180, 0.75, 1.0)
+
+
+@dataclass
+class RecordedHits:
+    """Per listed pixel (pixels, (P,)) and sub-sample: the triangle seen (-1: none) and its hit
+    (1, depth, barycentrics of b and c), and the view, for reshading at other instants."""
+
+    view: object
+    pixels: wp.array
+    entries: wp.array
+    hits: wp.array
 
 
 @dataclass
@@ -40,6 +51,7 @@ class FrameContext:
     aov_motion: np.ndarray | None = None
     aov_depth: np.ndarray | None = None
     _instant_shadows: ShadowMaps | None = None
+    _shading_last: tuple | None = None   # (time, Shading) of the last instant shaded
     instants: int = 1   # sharp instants this frame will shade (accumulation sets it)
 
     @contextmanager
@@ -119,7 +131,10 @@ class FrameContext:
         return (time_code - self.shutter.open) / (self.shutter.close - self.shutter.open)
 
     def shading(self, snapshots: list[Snapshot]):
-        """Shading tables for one sharp instant (with that instant's shadow maps)."""
+        """Shading tables for one sharp instant (with that instant's shadow maps; the last
+        instant's are kept, since several passes may shade the same instant)."""
+        if len(snapshots) == 1 and self._shading_last is not None and self._shading_last[0] == snapshots[0].time:
+            return self._shading_last[1]
         lights = np.stack([s.lights for s in snapshots]) if snapshots else np.zeros((1, 0, 18), np.float32)
         shadows = None
         if len(snapshots) == 1:
@@ -132,8 +147,11 @@ class FrameContext:
                 with self.timed("shadow_total"):
                     shadows = self._instant_shadows.data_for_instant(self.shutter_fraction(snapshots[0].time),
                                                                      self.instants, self.settings.shadow_times)
-        return make_shading(self.scene.material_table, lights, self.scene.dome, self.device, shadows,
-                            self.shadow_options())
+        sh = make_shading(self.scene.material_table, lights, self.scene.dome, self.device, shadows,
+                          self.shadow_options())
+        if len(snapshots) == 1:
+            self._shading_last = (snapshots[0].time, sh)
+        return sh
 
     def bin(self, positions: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray,
             entry_k1: np.ndarray) -> TileBins:
@@ -169,24 +187,44 @@ class FrameContext:
         bins = self.bin(positions, tris, k, k)
         return make_geometry(self.tables, positions, normals, tris, k, k), bins
 
-    def sharp_pass(self, snapshot: Snapshot, weight: float, rgba: wp.array, pixels: np.ndarray | None = None) -> None:
-        """rgba += weight × the sharp image of one instant (only at `pixels`, flat indices, if given)."""
+    def sharp_pass(self, snapshot: Snapshot, weight: float, rgba: wp.array, pixels: np.ndarray | None = None,
+                   record: bool = False) -> "RecordedHits | None":
+        """rgba += weight × the sharp image of one instant (only at `pixels`, flat indices, if
+        given). With record, returns each listed pixel's hits for reshade_pass."""
         if pixels is not None and len(pixels) == 0:
-            return
+            return None
         geo, bins = self.static_geometry([snapshot], 0)
         sh = self.shading([snapshot])
         view, b = self.view(bins), make_bins(bins, self.device)
         u = self.shutter_fraction(snapshot.time)   # static entries ignore it; shadow maps shared over time use it
+        dev = self.device
+        count = self.num_pixels if pixels is None else len(pixels)
+        listed = wp.array(pixels.astype(np.int32), dtype=int, device=dev) if pixels is not None else \
+            wp.zeros(1, dtype=int, device=dev)
+        subs = self.settings.spatial_samples ** 2
+        rows = count if record else 1
+        rec_e = wp.zeros((rows, subs if record else 1), dtype=int, device=dev)
+        rec_hit = wp.zeros((rows, subs if record else 1), dtype=wp.vec4, device=dev)
         with self.timed("render"):
-            if pixels is None:
-                launch_pixels(render_sharp, self.num_pixels,
-                              lambda first, _n: [view, geo, sh, b, u, weight, first, rgba],
-                              self.device, self.settings.threads)
-            else:
-                listed = wp.array(pixels.astype(np.int32), dtype=int, device=self.device)
-                launch_pixels(render_sharp_listed, len(pixels),
-                              lambda first, _n: [view, geo, sh, b, u, weight, listed, first, rgba],
-                              self.device, self.settings.threads)
+            launch_pixels(render_sharp, count,
+                          lambda first, _n: [view, geo, sh, b, u, weight, listed, 0 if pixels is None else 1, first,
+                                             1 if record else 0, rgba, rec_e, rec_hit], dev, self.settings.threads)
+        return RecordedHits(view, listed, rec_e, rec_hit) if record else None
+
+    def reshade_pass(self, snapshot: Snapshot, hits: "RecordedHits", weight: float, rgba: wp.array) -> None:
+        """rgba += weight × the sharp image of one instant at the recorded pixels, whose
+        visibility does not change: their recorded hits are shaded with this instant's lights
+        and shadows."""
+        tris = np.arange(self.scene.num_triangles, dtype=np.int32)
+        k = np.zeros(len(tris), np.int32)
+        normals = snapshot.normals[None] if self.scene.any_smooth else None
+        geo = make_geometry(self.tables, snapshot.positions[None], normals, tris, k, k)   # entry = triangle
+        sh = self.shading([snapshot])
+        u = self.shutter_fraction(snapshot.time)
+        with self.timed("render"):
+            launch_pixels(shade_recorded, hits.pixels.shape[0],
+                          lambda first, _n: [hits.view, geo, sh, u, weight, hits.pixels, first, hits.entries,
+                                             hits.hits, rgba], self.device, self.settings.threads)
 
     def depth_motion(self, snapshots: list[Snapshot] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Z (H, W) and motion (H, W, 2) AOVs of the surface seen at the shutter centre."""

@@ -86,8 +86,10 @@ def to_raster(view: View, p: wp.vec3) -> wp.vec3:
 
 @wp.func
 def sharp_pixel(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float, pix: int,
-                rgba: wp.array2d(dtype=float)):
-    """rgba[pix] += weight × pixel pix of the sharp image at shutter time u (n×n sub-samples)."""
+                rgba: wp.array2d(dtype=float), record: int, row: int, rec_e: wp.array2d(dtype=int),
+                rec_hit: wp.array2d(dtype=wp.vec4)):
+    """rgba[pix] += weight × pixel pix of the sharp image at shutter time u (n×n sub-samples);
+    with record = 1, each sub-sample's triangle (-1: none) and hit go to rec_e[row, s], rec_hit[row, s]."""
     px = pix % view.width
     py = pix // view.width
     tile = pixel_tile(view, px, py)
@@ -101,12 +103,22 @@ def sharp_pixel(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, we
             o = pixel_ray_origin(view, x, y)
             d = pixel_ray_direction(view, x, y)
             e, alpha, hit = nearest_entry(view, geo, bins, tile, x, y, o, d, u)
+            if record != 0:
+                tri = int(-1)
+                if e >= 0:
+                    tri = geo.entry_tri[e]
+                rec_e[row, sy * n + sx] = tri
+                rec_hit[row, sy * n + sx] = hit
             if e >= 0:
                 color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
                 cover = cover + 1.0
             else:
                 color = color + sh.dome
-    w = weight / float(n * n)
+    add_pixel(rgba, pix, weight / float(n * n), color, cover)
+
+
+@wp.func
+def add_pixel(rgba: wp.array2d(dtype=float), pix: int, w: float, color: wp.vec3, cover: float):
     rgba[pix, 0] = rgba[pix, 0] + w * color[0]
     rgba[pix, 1] = rgba[pix, 1] + w * color[1]
     rgba[pix, 2] = rgba[pix, 2] + w * color[2]
@@ -114,20 +126,47 @@ def sharp_pixel(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, we
 
 
 @wp.kernel(enable_backward=False)
-def render_sharp(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float, first_pixel: int,
+def render_sharp(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float,
+                 pixels: wp.array(dtype=int), listed: int, first: int, record: int,
                  # outputs
-                 rgba: wp.array2d(dtype=float)):
-    """Add weight × (the sharp image at shutter time u) to rgba (H*W, 4)."""
-    sharp_pixel(view, geo, sh, bins, u, weight, first_pixel + wp.tid(), rgba)
+                 rgba: wp.array2d(dtype=float), rec_e: wp.array2d(dtype=int), rec_hit: wp.array2d(dtype=wp.vec4)):
+    """Add weight × (the sharp image at shutter time u) to rgba (H*W, 4): at pixel first + tid, or
+    with listed = 1 at pixels[first + tid] (recording each sub-sample's hit in row first + tid of
+    rec_e / rec_hit when record = 1, for shade_recorded)."""
+    k = first + wp.tid()
+    pix = k
+    if listed != 0:
+        pix = pixels[k]
+    sharp_pixel(view, geo, sh, bins, u, weight, pix, rgba, record, k, rec_e, rec_hit)
 
 
 @wp.kernel(enable_backward=False)
-def render_sharp_listed(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float,
-                        pixels: wp.array(dtype=int), first: int,
-                        # outputs
-                        rgba: wp.array2d(dtype=float)):
-    """render_sharp for the listed pixels only (pixels[first + tid])."""
-    sharp_pixel(view, geo, sh, bins, u, weight, pixels[first + wp.tid()], rgba)
+def shade_recorded(view: View, geo: Geometry, sh: Shading, u: float, weight: float, pixels: wp.array(dtype=int),
+                   first: int, rec_e: wp.array2d(dtype=int), rec_hit: wp.array2d(dtype=wp.vec4),
+                   # outputs
+                   rgba: wp.array2d(dtype=float)):
+    """render_sharp at listed pixels whose visibility is known not to change (recorded at another
+    instant): only the shading at time u (lights, shadows, normals) is redone. geo's entries are
+    all triangles (entry = triangle index), as recorded."""
+    k = first + wp.tid()
+    pix = pixels[k]
+    px = pix % view.width
+    py = pix // view.width
+    n = view.spatial
+    color = wp.vec3(0.0, 0.0, 0.0)
+    cover = float(0.0)
+    for sy in range(n):
+        for sx in range(n):
+            e = rec_e[k, sy * n + sx]
+            if e >= 0:
+                x = float(px) + (float(sx) + 0.5) / float(n)
+                y = float(py) + (float(sy) + 0.5) / float(n)
+                color = color + shade_entry_hit(view, geo, sh, e, 0.0, u, pixel_ray_origin(view, x, y),
+                                                pixel_ray_direction(view, x, y), rec_hit[k, sy * n + sx])
+                cover = cover + 1.0
+            else:
+                color = color + sh.dome
+    add_pixel(rgba, pix, weight / float(n * n), color, cover)
 
 
 @wp.func

@@ -1,9 +1,10 @@
 """Accumulation, the reference: N sharp instants at u_i = (i + 0.5)/N, averaged (SPEC §5).
 
-Only the work the scene requires: under lights that hold still and without shadow maps, screen
-tiles that no moving (or appearing) triangle touches at any of the N instants look the same at
-every instant, so they are rendered once; the other tiles are rendered at every instant. The
-result is the same average (tested against rendering every pixel at every instant).
+Only the work the scene requires: screen tiles that no moving (or appearing) triangle touches at
+any of the N instants see the same surfaces at every instant. Under lights that hold still and
+cast no shadow they look the same too, and are rendered once; otherwise their visibility is
+found once and only their shading is redone per instant. The other tiles are rendered at every
+instant. The result is the same average (tested against rendering every pixel at every instant).
 """
 
 from __future__ import annotations
@@ -23,21 +24,20 @@ def instants(n: int) -> np.ndarray:
     return (np.arange(n) + 0.5) / n
 
 
-def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> np.ndarray | None:
-    """Flat indices (ascending) of the pixels in screen tiles that a triangle which moves or
-    changes visibility covers (by its screen box) at one of the instants `us`; None when every
-    pixel must be rendered at every instant (lights that change, shadow-casting lights, or
-    nothing still)."""
+def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> tuple[np.ndarray, bool] | None:
+    """(flat indices, ascending, of the pixels in screen tiles that a triangle which moves or
+    changes visibility covers (by its screen box) at one of the instants `us`; whether shading
+    is steady too: lights that hold still and cast no shadow), or None when nothing is still."""
     scene = ctx.scene
     first = ctx.snapshot(float(us[0]), with_normals=False)
-    if ctx.may_cast_shadows() and len(first.lights) and (first.lights[:, 17] > 0.5).any():
-        return None   # shadows may change at still pixels: every instant is rendered
+    steady = not (ctx.may_cast_shadows() and len(first.lights) and (first.lights[:, 17] > 0.5).any())
     still_v = np.ones(len(first.positions), bool)
     same_vis = np.ones(scene.num_triangles, bool)
     for u in us[1:]:
         snap = ctx.snapshot(float(u), with_normals=False)
-        if not np.array_equal(snap.lights, first.lights) or snap.positions.shape != first.positions.shape:
+        if snap.positions.shape != first.positions.shape:
             return None
+        steady &= np.array_equal(snap.lights, first.lights)
         still_v &= (snap.positions == first.positions).all(axis=1)
         if len(snap.tri_visible) == len(same_vis):
             same_vis &= snap.tri_visible == first.tri_visible
@@ -68,7 +68,7 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> np.ndarray | None:
         np.add.at(marks, (ty1, tx1), 1)
     tile_moving = marks.cumsum(axis=0).cumsum(axis=1)[:tiles_y, :tiles_x] > 0
     pixel_moving = np.repeat(np.repeat(tile_moving, TILE_SIZE, axis=0), TILE_SIZE, axis=1)[:proj.height, :proj.width]
-    return np.nonzero(pixel_moving.ravel())[0]
+    return np.nonzero(pixel_moving.ravel())[0], bool(steady)
 
 
 def render_accumulation(ctx: FrameContext) -> np.ndarray:
@@ -78,18 +78,26 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
     rgba = wp.zeros((ctx.num_pixels, 4), dtype=float, device=ctx.device)
     ctx.instants = n
     us = instants(n)
-    moving = moving_tile_pixels(ctx, us) if (STATIC_TILES and n > 1) else None
-    if moving is None:
+    plan = moving_tile_pixels(ctx, us) if (STATIC_TILES and n > 1) else None
+    if plan is None:
         for u in us:
             ctx.sharp_pass(ctx.snapshot(float(u)), 1.0 / n, rgba)
     else:
+        moving, steady = plan
         still = np.ones(ctx.num_pixels, bool)
         still[moving] = False
+        still_px = np.nonzero(still)[0]
+        hits = None
         for i, u in enumerate(us):
             snap = ctx.snapshot(float(u))
-            if i == 0:   # still tiles look the same at every instant: render them once, at full weight
-                ctx.sharp_pass(snap, 1.0, rgba, np.nonzero(still)[0])
+            if i == 0 and steady:   # still tiles look the same at every instant: once, at full weight
+                ctx.sharp_pass(snap, 1.0, rgba, still_px)
+            elif i == 0:            # still tiles see the same surfaces: find them once, shade per instant
+                hits = ctx.sharp_pass(snap, 1.0 / n, rgba, still_px, record=True)
+            elif hits is not None:
+                ctx.reshade_pass(snap, hits, 1.0 / n, rgba)
             ctx.sharp_pass(snap, 1.0 / n, rgba, moving)
         ctx.counters["accumulation_still_pixels"] = float(still.mean())
+        ctx.counters["accumulation_still_shading"] = "once" if steady else "per instant"
     ctx.counters["instants"] = n
     return rgba.numpy()
