@@ -178,22 +178,28 @@ class FrameContext:
         n = self.settings.spatial_samples
         return [((i + 0.5) / n, (j + 0.5) / n) for j in range(n) for i in range(n)]
 
-    def static_geometry(self, snapshots: list[Snapshot], knot: int) -> tuple[Geometry, TileBins]:
-        """Geometry with all snapshots as knots, and static entries at `knot` for visible triangles."""
+    def static_geometry(self, snapshots: list[Snapshot], knot: int,
+                        triangles: np.ndarray | None = None) -> tuple[Geometry, TileBins]:
+        """Geometry with all snapshots as knots, and static entries at `knot` for visible triangles
+        (of `triangles`, a (T,) mask, when given)."""
         positions = np.stack([s.positions for s in snapshots])
         normals = np.stack([s.normals for s in snapshots]) if self.scene.any_smooth else None
-        tris = np.nonzero(snapshots[knot].tri_visible)[0].astype(np.int32)
+        visible = snapshots[knot].tri_visible
+        if triangles is not None:
+            visible = visible & triangles
+        tris = np.nonzero(visible)[0].astype(np.int32)
         k = np.full(len(tris), knot, np.int32)
         bins = self.bin(positions, tris, k, k)
         return make_geometry(self.tables, positions, normals, tris, k, k), bins
 
     def sharp_pass(self, snapshot: Snapshot, weight: float, rgba: wp.array, pixels: np.ndarray | None = None,
-                   record: bool = False) -> "RecordedHits | None":
+                   record: bool = False, triangles: np.ndarray | None = None) -> "RecordedHits | None":
         """rgba += weight × the sharp image of one instant (only at `pixels`, flat indices, if
-        given). With record, returns each listed pixel's hits for reshade_pass."""
+        given, from only `triangles`, a (T,) mask, when the caller knows the others cannot show
+        there). With record, returns each listed pixel's hits for reshade_pass."""
         if pixels is not None and len(pixels) == 0:
             return None
-        geo, bins = self.static_geometry([snapshot], 0)
+        geo, bins = self.static_geometry([snapshot], 0, triangles)
         sh = self.shading([snapshot])
         view, b = self.view(bins), make_bins(bins, self.device)
         u = self.shutter_fraction(snapshot.time)   # static entries ignore it; shadow maps shared over time use it

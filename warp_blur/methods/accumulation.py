@@ -9,6 +9,8 @@ instant. The result is the same average (tested against rendering every pixel at
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import warp as wp
 
@@ -24,10 +26,21 @@ def instants(n: int) -> np.ndarray:
     return (np.arange(n) + 0.5) / n
 
 
-def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> tuple[np.ndarray, bool] | None:
-    """(flat indices, ascending, of the pixels in screen tiles that a triangle which moves or
-    changes visibility covers (by its screen box) at one of the instants `us`; whether shading
-    is steady too: lights that hold still and cast no shadow), or None when nothing is still."""
+@dataclass
+class MovingTiles:
+    """pixels: flat indices (ascending) of the pixels in screen tiles that a triangle which moves
+    or changes visibility covers (by its screen box) at one of the instants; steady: shading is
+    the same at every instant too (lights that hold still and cast no shadow); needed (T,) bool:
+    the triangles that can show in those tiles (the moving ones and still ones whose box meets
+    a moving tile)."""
+
+    pixels: np.ndarray
+    steady: bool
+    needed: np.ndarray
+
+
+def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
+    """Where the instants `us` differ (see MovingTiles), or None when nothing is still."""
     scene = ctx.scene
     first = ctx.snapshot(float(us[0]), with_normals=False)
     steady = not (ctx.may_cast_shadows() and len(first.lights) and (first.lights[:, 17] > 0.5).any())
@@ -49,26 +62,41 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> tuple[np.ndarray, b
     tiles_x = (proj.width + TILE_SIZE - 1) // TILE_SIZE
     tiles_y = (proj.height + TILE_SIZE - 1) // TILE_SIZE
     marks = np.zeros((tiles_y + 1, tiles_x + 1), np.int64)   # 2D difference array of tile boxes
-    zero = np.zeros(len(moving), np.int32)
     for u in us:
         snap = first if u == us[0] else ctx.snapshot(float(u), with_normals=False)
         tris = moving[snap.tri_visible[moving]] if len(snap.tri_visible) else moving
-        if len(tris) == 0:
-            continue
-        k = zero[:len(tris)]
-        boxes, keep = entry_pixel_bounds(proj, snap.positions[None], scene.tri_vertices, tris, k, k, 1.0)
-        b = boxes[keep]
-        tx0 = np.clip(np.floor(b[:, 0] / TILE_SIZE), 0, tiles_x - 1).astype(np.int64)
-        ty0 = np.clip(np.floor(b[:, 1] / TILE_SIZE), 0, tiles_y - 1).astype(np.int64)
-        tx1 = np.clip(np.floor(b[:, 2] / TILE_SIZE), 0, tiles_x - 1).astype(np.int64) + 1
-        ty1 = np.clip(np.floor(b[:, 3] / TILE_SIZE), 0, tiles_y - 1).astype(np.int64) + 1
+        tx0, ty0, tx1, ty1 = tile_rects(ctx, snap.positions, tris)
         np.add.at(marks, (ty0, tx0), 1)
         np.add.at(marks, (ty0, tx1), -1)
         np.add.at(marks, (ty1, tx0), -1)
         np.add.at(marks, (ty1, tx1), 1)
     tile_moving = marks.cumsum(axis=0).cumsum(axis=1)[:tiles_y, :tiles_x] > 0
     pixel_moving = np.repeat(np.repeat(tile_moving, TILE_SIZE, axis=0), TILE_SIZE, axis=1)[:proj.height, :proj.width]
-    return np.nonzero(pixel_moving.ravel())[0], bool(steady)
+    # still triangles that can show in a moving tile (their box is the same at every instant)
+    integral = np.zeros((tiles_y + 1, tiles_x + 1), np.int64)
+    integral[1:, 1:] = tile_moving.cumsum(axis=0).cumsum(axis=1)
+    still_idx = np.nonzero(still)[0].astype(np.int32)
+    tx0, ty0, tx1, ty1, kept = tile_rects(ctx, first.positions, still_idx, with_kept=True)
+    touched = (integral[ty1, tx1] - integral[ty0, tx1] - integral[ty1, tx0] + integral[ty0, tx0]) > 0
+    needed = ~still
+    needed[kept[touched]] = True
+    return MovingTiles(np.nonzero(pixel_moving.ravel())[0], bool(steady), needed)
+
+
+def tile_rects(ctx: FrameContext, positions: np.ndarray, tris: np.ndarray, with_kept: bool = False):
+    """Screen-tile rectangles [tx0, tx1) × [ty0, ty1) of triangles' pixel boxes at camera-space
+    positions (V, 3), for the triangles that can be on screen (returned too with with_kept)."""
+    proj = ctx.proj
+    tiles_x = (proj.width + TILE_SIZE - 1) // TILE_SIZE
+    tiles_y = (proj.height + TILE_SIZE - 1) // TILE_SIZE
+    k = np.zeros(len(tris), np.int32)
+    boxes, keep = entry_pixel_bounds(proj, positions[None], ctx.scene.tri_vertices, tris, k, k, 1.0)
+    b = boxes[keep]
+    rect = (np.clip(np.floor(b[:, 0] / TILE_SIZE), 0, tiles_x - 1).astype(np.int64),
+            np.clip(np.floor(b[:, 1] / TILE_SIZE), 0, tiles_y - 1).astype(np.int64),
+            np.clip(np.floor(b[:, 2] / TILE_SIZE), 0, tiles_x - 1).astype(np.int64) + 1,
+            np.clip(np.floor(b[:, 3] / TILE_SIZE), 0, tiles_y - 1).astype(np.int64) + 1)
+    return (*rect, tris[keep]) if with_kept else rect
 
 
 def render_accumulation(ctx: FrameContext) -> np.ndarray:
@@ -83,7 +111,7 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
         for u in us:
             ctx.sharp_pass(ctx.snapshot(float(u)), 1.0 / n, rgba)
     else:
-        moving, steady = plan
+        moving, steady = plan.pixels, plan.steady
         still = np.ones(ctx.num_pixels, bool)
         still[moving] = False
         still_px = np.nonzero(still)[0]
@@ -96,7 +124,7 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
                 hits = ctx.sharp_pass(snap, 1.0 / n, rgba, still_px, record=True)
             elif hits is not None:
                 ctx.reshade_pass(snap, hits, 1.0 / n, rgba)
-            ctx.sharp_pass(snap, 1.0 / n, rgba, moving)
+            ctx.sharp_pass(snap, 1.0 / n, rgba, moving, triangles=plan.needed)
         ctx.counters["accumulation_still_pixels"] = float(still.mean())
         ctx.counters["accumulation_still_shading"] = "once" if steady else "per instant"
     ctx.counters["instants"] = n
