@@ -91,6 +91,15 @@ def test_still_tiles_reshaded_per_instant_equal_every_instant(scene_path, monkey
     assert np.abs(once.rgba - every.rgba).max() < 1e-5
 
 
+def test_recorded_hits_stay_within_the_memory_budget(scene_path):
+    from scenes import shadow_stage
+    path = shadow_stage(scene_path(), occluder_samples={0.5: (-1.0, 1.0, 0.0), 1.5: (1.0, 1.0, 0.0)})
+    kw = dict(frame=1, resolution=(96, 72), samples=8, aovs=(), shadow_map_size=256, shadows="direct")
+    small = wb.render(path, memory_budget_mb=0.01, **kw)     # 96×72 hits need ~0.1 MB
+    assert "accumulation_still_pixels" not in small.stats
+    assert np.abs(small.rgba - wb.render(path, **kw).rgba).max() < 1e-5
+
+
 def test_nothing_still_renders_every_instant(scene_path):
     path = two_quads_stage(scene_path())
     r = wb.render(path, frame=1, resolution=(64, 48), samples=8, aovs=())

@@ -57,7 +57,8 @@ class RenderSettings:
         segment_time_error: max linearisation error relative to a vertex's screen path (≈ the
             error in the time an edge covers a pixel, as a share of the shutter).
         max_segments: upper bound of motion segments per prim (power of two).
-        memory_budget_mb: analytic interval arrays above this render in pixel bands.
+        memory_budget_mb: analytic interval arrays above this render in pixel bands; accumulation
+            records still pixels' hits only within it (else renders them at every instant).
         soft_edge_radius: velocity method: blur radius (pixels) of the soft-edge velocity buffer (0 = off).
         velocity_extrude: velocity method: vertex-trail extrusion (vertices facing the motion at
             shutter close, the others at open) before the gather.

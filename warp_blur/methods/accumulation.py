@@ -19,6 +19,8 @@ from ..frame import FrameContext
 
 #: tests switch this off to compare against rendering every pixel at every instant
 STATIC_TILES = True
+#: bytes per recorded hit (triangle index and (hit, depth, barycentrics)), held for the frame
+RECORD_BYTES = 4 + 16
 
 
 def instants(n: int) -> np.ndarray:
@@ -107,6 +109,11 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
     ctx.instants = n
     us = instants(n)
     plan = moving_tile_pixels(ctx, us) if (STATIC_TILES and n > 1) else None
+    if plan is not None and not plan.steady:
+        # recorded hits: a triangle index and a vec4 per still pixel and sub-sample
+        record_bytes = (ctx.num_pixels - len(plan.pixels)) * ctx.settings.spatial_samples ** 2 * RECORD_BYTES
+        if record_bytes > ctx.settings.memory_budget_mb * 2**20:
+            plan = None
     if plan is None:
         for u in us:
             ctx.sharp_pass(ctx.snapshot(float(u)), 1.0 / n, rgba)
