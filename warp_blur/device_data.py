@@ -81,7 +81,6 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
     s.dome = wp.vec3(*[float(x) for x in dome])
     # per light: first map (-1 = no shadow), light samples, faces, 1 when the light holds still
     # over the shutter (its maps' texel flags then tell where a time span needs one lookup)
-    still = (lt == lt[:1]).all(axis=(0, 2)).astype(np.int32) if len(lt) else np.ones(lt.shape[1], np.int32)
     if shadows is None:
         s.shadow_maps = wp.zeros((1, 1, 1), dtype=float, device=device)
         s.shadow_varying = wp.zeros((1, 1, 1), dtype=wp.uint8, device=device)
@@ -96,7 +95,8 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
         s.shadow_faces = wp.array(shadows.faces, dtype=float, device=device)
         info = np.zeros((len(shadows.lights), 4), np.int32)
         info[:, :3] = shadows.lights
-        info[:nl, 3] = still[:nl] if shadows.varying is not None else 0
+        if shadows.varying is not None:
+            info[:nl, 3] = (lt == lt[:1]).all(axis=(0, 2))[:nl]
         s.shadow_lights = wp.array(info, dtype=int, device=device)
         s.shadow_times, s.shadow_size = shadows.times, shadows.size
     s.shadow_bias = float(options.bias) if options is not None else 1.0

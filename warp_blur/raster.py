@@ -222,8 +222,5 @@ def render_sharp_depth_motion(view: View, geo: Geometry, sh: Shading, bins: Bins
     if e >= 0:
         color = shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
         cover = 1.0
-    rgba[pix, 0] = rgba[pix, 0] + color[0]
-    rgba[pix, 1] = rgba[pix, 1] + color[1]
-    rgba[pix, 2] = rgba[pix, 2] + color[2]
-    rgba[pix, 3] = rgba[pix, 3] + cover
+    add_pixel(rgba, pix, 1.0, color, cover)
     store_depth_motion(view, geo, e, hit, k_open, k_close, pix, depth, motion)

@@ -99,6 +99,14 @@ def intersect_triangle(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec
 
 
 @wp.func
+def static_entry_hit(geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> wp.vec4:
+    """intersect_triangle for static entry e (its triangle at its one knot)."""
+    vi = geo.tri_vertices[geo.entry_tri[e]]
+    k = geo.entry_k0[e]
+    return intersect_triangle(o, d, geo.positions[k, vi[0]], geo.positions[k, vi[1]], geo.positions[k, vi[2]], vi)
+
+
+@wp.func
 def entry_alpha(geo: Geometry, e: int, u: float) -> float:
     """Interpolation weight of knot k1 at shutter time u (-1 when u is outside the entry's span)."""
     k0 = geo.entry_k0[e]

@@ -109,7 +109,6 @@ def direct_light(sh: Shading, j: int, u: float, du: float, p: wp.vec3, n: wp.vec
     return out
 
 
-
 @wp.func
 def shade_entry_hit(view: View, geo: Geometry, sh: Shading, e: int, alpha: float, u: float,
                     o: wp.vec3, d: wp.vec3, hit: wp.vec4) -> wp.vec3:

@@ -42,36 +42,46 @@ class MovingTiles:
 
 
 def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
-    """Where the instants `us` differ (see MovingTiles), or None when nothing is still."""
+    """Where the instants `us` differ (see MovingTiles), or None when nothing is still. One sweep:
+    at each instant the triangles that differ from the first instant mark their tiles there; the
+    ones that moved at some instant also mark their tiles at the first instant (where they are
+    whenever they do not differ from it)."""
     scene = ctx.scene
     first = ctx.snapshot(float(us[0]), with_normals=False)
     steady = not (ctx.may_cast_shadows() and len(first.lights) and (first.lights[:, 17] > 0.5).any())
+    num_tris = scene.num_triangles
     still_v = np.ones(len(first.positions), bool)
-    same_vis = np.ones(scene.num_triangles, bool)
+    same_vis = np.ones(num_tris, bool)
+    proj = ctx.proj
+    tiles_x = (proj.width + TILE_SIZE - 1) // TILE_SIZE
+    tiles_y = (proj.height + TILE_SIZE - 1) // TILE_SIZE
+    marks = np.zeros((tiles_y + 1, tiles_x + 1), np.int64)   # 2D difference array of tile boxes
+
+    def visible(snap) -> np.ndarray:
+        return snap.tri_visible if len(snap.tri_visible) == num_tris else np.ones(num_tris, bool)
+
+    def mark(positions: np.ndarray, tris: np.ndarray) -> None:
+        tx0, ty0, tx1, ty1 = tile_rects(ctx, positions, tris.astype(np.int32))
+        np.add.at(marks, (ty0, tx0), 1)
+        np.add.at(marks, (ty0, tx1), -1)
+        np.add.at(marks, (ty1, tx0), -1)
+        np.add.at(marks, (ty1, tx1), 1)
+
     for u in us[1:]:
         snap = ctx.snapshot(float(u), with_normals=False)
         if snap.positions.shape != first.positions.shape:
             return None
         steady &= np.array_equal(snap.lights, first.lights)
-        still_v &= (snap.positions == first.positions).all(axis=1)
-        if len(snap.tri_visible) == len(same_vis):
-            same_vis &= snap.tri_visible == first.tri_visible
+        same_v = (snap.positions == first.positions).all(axis=1)
+        same_t = visible(snap) == visible(first)
+        still_v &= same_v
+        same_vis &= same_t
+        differ = ~(same_t & same_v[scene.tri_vertices].all(axis=1))
+        mark(snap.positions, np.nonzero(differ & visible(snap))[0])
     still = same_vis & still_v[scene.tri_vertices].all(axis=1)
-    moving = np.nonzero(~still)[0].astype(np.int32)
-    if len(moving) == len(still):
+    if not still.any():
         return None
-    proj = ctx.proj
-    tiles_x = (proj.width + TILE_SIZE - 1) // TILE_SIZE
-    tiles_y = (proj.height + TILE_SIZE - 1) // TILE_SIZE
-    marks = np.zeros((tiles_y + 1, tiles_x + 1), np.int64)   # 2D difference array of tile boxes
-    for u in us:
-        snap = first if u == us[0] else ctx.snapshot(float(u), with_normals=False)
-        tris = moving[snap.tri_visible[moving]] if len(snap.tri_visible) else moving
-        tx0, ty0, tx1, ty1 = tile_rects(ctx, snap.positions, tris)
-        np.add.at(marks, (ty0, tx0), 1)
-        np.add.at(marks, (ty0, tx1), -1)
-        np.add.at(marks, (ty1, tx0), -1)
-        np.add.at(marks, (ty1, tx1), 1)
+    mark(first.positions, np.nonzero(~still & visible(first))[0])
     tile_moving = marks.cumsum(axis=0).cumsum(axis=1)[:tiles_y, :tiles_x] > 0
     pixel_moving = np.repeat(np.repeat(tile_moving, TILE_SIZE, axis=0), TILE_SIZE, axis=1)[:proj.height, :proj.width]
     # still triangles that can show in a moving tile (their box is the same at every instant)

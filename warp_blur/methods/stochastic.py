@@ -18,10 +18,11 @@ import warp as wp
 from ..frame import FrameContext
 from ..kernel_types import Bins, Geometry, Shading, View
 from ..parallel import launch_pixels
-from ..raster import box_rejects, pixel_tile
-from ..rays import entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin
+from ..raster import add_pixel, box_rejects, pixel_tile
+from ..rays import entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin, static_entry_hit
 from ..shading import shade_entry_hit, shade_entry_hit_span
 from .analytic.coverage import DEGENERATE_TOL_F32, MAX_SPAN_PIECES, next_breakpoint, piece_covered, prism_edges
+from .analytic.intervals import nearest_static
 from .analytic.segments import prepare_motion
 
 SCRATCH_BYTES = 64 * 2**20
@@ -59,8 +60,8 @@ def covered_time_bounds(geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> wp.vec
 
 
 @wp.kernel(enable_backward=False)
-def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, bins: Bins, sub: wp.vec2, n: int, seed: int,
-                             lights_static: int, weight: float, first_pixel: int,
+def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins: Bins, moving_bins: Bins,
+                             sub: wp.vec2, n: int, seed: int, lights_static: int, weight: float, first_pixel: int,
                              # outputs (scratch rows are per band: row = tid)
                              times: wp.array2d(dtype=float), best_z: wp.array2d(dtype=float),
                              best_e: wp.array2d(dtype=int), rgba: wp.array2d(dtype=float)):
@@ -79,37 +80,27 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, bins: Bins,
         best_e[tid, j] = -1
     tile = pixel_tile(view, px, py)
     # the nearest static surface covers every sample; moving entries are tracked per sample
-    e_static = int(-1)
-    z_static = float(wp.inf)
-    for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
-        e = bins.tile_entries[i]
-        vi = geo.tri_vertices[geo.entry_tri[e]]
-        k0 = geo.entry_k0[e]
-        k1 = geo.entry_k1[e]
-        if box_rejects(bins, e, x, y):
+    e_static, z_static = nearest_static(view, geo, static_bins, tile, x, y, o, d)
+    for i in range(moving_bins.tile_offsets[tile], moving_bins.tile_offsets[tile + 1]):
+        e = moving_bins.tile_entries[i]
+        if box_rejects(moving_bins, e, x, y):
             continue
-        if k0 == k1:
-            hit = intersect_triangle(o, d, geo.positions[k0, vi[0]], geo.positions[k0, vi[1]], geo.positions[k0, vi[2]],
-                                     vi)
-            if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far and hit[1] < z_static:
-                z_static = hit[1]
-                e_static = e
-        else:
-            bounds = covered_time_bounds(geo, e, o, d)
-            if bounds[0] <= bounds[1]:
-                u0 = float(k0) / float(geo.num_segments)
-                u1 = float(k1) / float(geo.num_segments)
-                j0 = wp.clamp(int(wp.floor(bounds[0] * float(n))), 0, n - 1)
-                j1 = wp.clamp(int(wp.floor(bounds[1] * float(n))), 0, n - 1)
-                for j in range(j0, j1 + 1):
-                    u = times[tid, j]
-                    if u >= u0 and u <= u1:
-                        alpha = (u - u0) / (u1 - u0)
-                        hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
-                                                 entry_vertex(geo, e, vi[2], alpha), vi)
-                        if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far and hit[1] < best_z[tid, j]:
-                            best_z[tid, j] = hit[1]
-                            best_e[tid, j] = e
+        bounds = covered_time_bounds(geo, e, o, d)
+        if bounds[0] <= bounds[1]:
+            vi = geo.tri_vertices[geo.entry_tri[e]]
+            u0 = float(geo.entry_k0[e]) / float(geo.num_segments)
+            u1 = float(geo.entry_k1[e]) / float(geo.num_segments)
+            j0 = wp.clamp(int(wp.floor(bounds[0] * float(n))), 0, n - 1)
+            j1 = wp.clamp(int(wp.floor(bounds[1] * float(n))), 0, n - 1)
+            for j in range(j0, j1 + 1):
+                u = times[tid, j]
+                if u >= u0 and u <= u1:
+                    alpha = (u - u0) / (u1 - u0)
+                    hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
+                                             entry_vertex(geo, e, vi[2], alpha), vi)
+                    if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far and hit[1] < best_z[tid, j]:
+                        best_z[tid, j] = hit[1]
+                        best_e[tid, j] = e
     moving_seen = int(0)
     for j in range(n):
         if best_e[tid, j] >= 0 and best_z[tid, j] < z_static:
@@ -123,11 +114,8 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, bins: Bins,
         # expectation exactly, with a moving shadow averaged over the shutter (one lookup where
         # the shadow never changes), instead of n shadings
         if e_static >= 0:
-            vi = geo.tri_vertices[geo.entry_tri[e_static]]
-            ks = geo.entry_k0[e_static]
-            hit = intersect_triangle(o, d, geo.positions[ks, vi[0]], geo.positions[ks, vi[1]], geo.positions[ks, vi[2]],
-                                     vi)
-            color = shade_entry_hit_span(view, geo, sh, e_static, 0.0, 0.5, 1.0, o, d, hit)
+            color = shade_entry_hit_span(view, geo, sh, e_static, 0.0, 0.5, 1.0, o, d,
+                                         static_entry_hit(geo, e_static, o, d))
             cover = 1.0
         else:
             color = sh.dome
@@ -150,17 +138,14 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, bins: Bins,
                 color = color + sh.dome
         color = color / float(n)
         cover = cover / float(n)
-    rgba[pix, 0] = rgba[pix, 0] + weight * color[0]
-    rgba[pix, 1] = rgba[pix, 1] + weight * color[1]
-    rgba[pix, 2] = rgba[pix, 2] + weight * color[2]
-    rgba[pix, 3] = rgba[pix, 3] + weight * cover
+    add_pixel(rgba, pix, weight, color, cover)
 
 
 def render_stochastic(ctx: FrameContext) -> np.ndarray:
     s = ctx.settings
     n = s.resolved_samples
     dev = ctx.device
-    plan, geo, (bins,), sh, view = prepare_motion(ctx)
+    plan, geo, (static_bins, moving_bins), sh, view = prepare_motion(ctx)
     rgba = wp.zeros((ctx.num_pixels, 4), dtype=float, device=dev)
     subs = ctx.sub_pixel_offsets()
     max_band = max(1, SCRATCH_BYTES // (12 * n))
@@ -170,7 +155,7 @@ def render_stochastic(ctx: FrameContext) -> np.ndarray:
         seed = (s.resolved_seed * 7919 + si * 104729) & 0x7FFFFFFF
 
         def inputs(first: int, count: int) -> list:
-            return [view, geo, sh, bins, sub_v, n, seed, lights_static, 1.0 / len(subs), first,
+            return [view, geo, sh, static_bins, moving_bins, sub_v, n, seed, lights_static, 1.0 / len(subs), first,
                     wp.empty((count, n), dtype=float, device=dev), wp.empty((count, n), dtype=float, device=dev),
                     wp.empty((count, n), dtype=int, device=dev), rgba]
 

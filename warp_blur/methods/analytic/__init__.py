@@ -43,7 +43,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     bits = s.resolved_time_bits
     n_shade = s.resolved_samples
     dev = ctx.device
-    plan, geo, (static_bins, moving_bins), sh, view = prepare_motion(ctx, split_static=True)
+    plan, geo, (static_bins, moving_bins), sh, view = prepare_motion(ctx)
     dome = wp.vec3(*[float(x) for x in ctx.scene.dome])
     num_px = ctx.num_pixels
     rgba = wp.zeros((num_px, 4), dtype=float, device=dev)

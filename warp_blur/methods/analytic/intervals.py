@@ -18,8 +18,8 @@ from __future__ import annotations
 import warp as wp
 
 from ...kernel_types import Bins, Geometry, Shading, View
-from ...raster import box_rejects, pixel_tile
-from ...rays import hit_from_edges, intersect_triangle, pixel_ray_direction, pixel_ray_origin
+from ...raster import add_pixel, box_rejects, pixel_tile
+from ...rays import hit_from_edges, intersect_triangle, pixel_ray_direction, pixel_ray_origin, static_entry_hit
 from ...shading import max_component, shade_entry_hit, shade_entry_hit_span
 from .coverage import DEGENERATE_TOL_F32, MAX_SPAN_PIECES, next_breakpoint, piece_covered, prism_edges
 from .resolve import span_slots
@@ -284,10 +284,7 @@ def nearest_static(view: View, geo: Geometry, static_bins: Bins, tile: int, sx: 
     for i in range(static_bins.tile_offsets[tile], static_bins.tile_offsets[tile + 1]):
         e = static_bins.tile_entries[i]
         if not box_rejects(static_bins, e, sx, sy):
-            vi = geo.tri_vertices[geo.entry_tri[e]]
-            k = geo.entry_k0[e]
-            hit = intersect_triangle(o, d, geo.positions[k, vi[0]], geo.positions[k, vi[1]], geo.positions[k, vi[2]],
-                                     vi)
+            hit = static_entry_hit(geo, e, o, d)
             if hit[0] > 0.0 and in_range(view, hit[1]) and hit[1] < z_static:
                 z_static = hit[1]
                 e_static = e
@@ -367,10 +364,7 @@ def count_intervals(view: View, geo: Geometry, sh: Shading, static_bins: Bins, m
                          iv_t, iv_z, iv_rgb, fallbacks)
     if n == 0 and direct != 0:
         c = static_color(view, geo, sh, e_static, o, d, n_shade_max, lights_static, bits)
-        rgba[pix, 0] = rgba[pix, 0] + weight * c[0]
-        rgba[pix, 1] = rgba[pix, 1] + weight * c[1]
-        rgba[pix, 2] = rgba[pix, 2] + weight * c[2]
-        rgba[pix, 3] = rgba[pix, 3] + weight * c[3]
+        add_pixel(rgba, pix, weight, wp.vec3(c[0], c[1], c[2]), c[3])
         counts[pix] = 0
         return
     if e_static >= 0:
@@ -399,10 +393,7 @@ def fill_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, su
     e_static = static_hit[pix]
     z_static = float(wp.inf)
     if e_static >= 0:
-        vi = geo.tri_vertices[geo.entry_tri[e_static]]
-        ks = geo.entry_k0[e_static]
-        z_static = intersect_triangle(o, d, geo.positions[ks, vi[0]], geo.positions[ks, vi[1]],
-                                      geo.positions[ks, vi[2]], vi)[1]
+        z_static = static_entry_hit(geo, e_static, o, d)[1]
     n = moving_intervals(view, geo, sh, moving_bins, pixel_tile(view, px, py), sx, sy, o, d, z_static, n_shade_max,
                          lights_static, 1, base, iv_t, iv_z, iv_rgb, fallbacks)
     if e_static >= 0:

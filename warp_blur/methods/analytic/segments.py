@@ -206,23 +206,18 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
                       tri_visible=vis)
 
 
-def prepare_motion(ctx, split_static: bool = False):
+def prepare_motion(ctx):
     """The moving scene of a frame on the device, as the analytic and stochastic methods use it:
-    (plan, Geometry, bins, Shading, View). bins is [Bins of all entries], or with split_static
-    [Bins of the static entries, Bins of the moving entries]."""
+    (plan, Geometry, (Bins of the static entries, Bins of the moving entries), Shading, View)."""
     from ...device_data import make_bins, make_geometry, make_shading
     s = ctx.settings
     with ctx.timed("segments"):
         plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.segment_error_px,
                            s.segment_time_error)
     geo = make_geometry(ctx.tables, plan.positions, plan.normals, plan.entry_tri, plan.entry_k0, plan.entry_k1)
-    if split_static:
-        static = plan.entry_k0 == plan.entry_k1
-        groups = [static, ~static]
-    else:
-        groups = [np.ones(len(plan.entry_tri), bool)]
-    tile_bins = ctx.bin_groups(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1, groups)
-    bins = [make_bins(b, ctx.device) for b in tile_bins]
+    static = plan.entry_k0 == plan.entry_k1
+    tile_bins = ctx.bin_groups(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1, [static, ~static])
+    bins = tuple(make_bins(b, ctx.device) for b in tile_bins)
     shadows = None
     maps = ctx.shadow_maps(plan.sample)
     if maps is not None:
