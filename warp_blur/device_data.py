@@ -11,7 +11,8 @@ from .kernel_types import Bins, Geometry, Shading, View
 from .shadow_lookup import FACE_WIDTH
 
 
-def _arr(a: np.ndarray, dtype, device: str, min_len: int = 1):
+def device_array(a: np.ndarray, dtype, device: str, min_len: int = 1):
+    """A Warp array of `a` (padded with zeros to min_len rows: kernels take no empty arrays)."""
     a = np.ascontiguousarray(a)
     if len(a) < min_len:
         shape = (min_len,) + a.shape[1:]
@@ -38,10 +39,10 @@ class TriangleTables:
 
     def __init__(self, tri_vertices: np.ndarray, tri_flags: np.ndarray, tri_material: np.ndarray,
                  tri_colors: np.ndarray, device: str) -> None:
-        self.tri_vertices = _arr(tri_vertices.astype(np.int32), wp.vec3i, device)
-        self.tri_flags = _arr(tri_flags.astype(np.int32), int, device)
-        self.tri_material = _arr(tri_material.astype(np.int32), int, device)
-        self.tri_colors = _arr(tri_colors.astype(np.float32), wp.vec3, device)
+        self.tri_vertices = device_array(tri_vertices.astype(np.int32), wp.vec3i, device)
+        self.tri_flags = device_array(tri_flags.astype(np.int32), int, device)
+        self.tri_material = device_array(tri_material.astype(np.int32), int, device)
+        self.tri_colors = device_array(tri_colors.astype(np.float32), wp.vec3, device)
         self.device = device
 
 
@@ -60,9 +61,9 @@ def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.nda
         g.normals = wp.array(np.ascontiguousarray(normals, np.float32), dtype=wp.vec3, device=dev)
     g.tri_vertices, g.tri_flags = tables.tri_vertices, tables.tri_flags
     g.tri_material, g.tri_colors = tables.tri_material, tables.tri_colors
-    g.entry_tri = _arr(entry_tri.astype(np.int32), int, dev)
-    g.entry_k0 = _arr(entry_k0.astype(np.int32), int, dev)
-    g.entry_k1 = _arr(entry_k1.astype(np.int32), int, dev)
+    g.entry_tri = device_array(entry_tri.astype(np.int32), int, dev)
+    g.entry_k0 = device_array(entry_k0.astype(np.int32), int, dev)
+    g.entry_k1 = device_array(entry_k1.astype(np.int32), int, dev)
     g.num_segments = max(k1 - 1, 1)
     return g
 
@@ -107,8 +108,8 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
 
 def make_bins(bins: TileBins, device: str) -> Bins:
     b = Bins()
-    b.tile_offsets = _arr(bins.tile_offsets, int, device)
-    b.tile_entries = _arr(bins.tile_entries, int, device)
+    b.tile_offsets = device_array(bins.tile_offsets, int, device)
+    b.tile_entries = device_array(bins.tile_entries, int, device)
     boxes = bins.entry_boxes if bins.entry_boxes is not None else np.zeros((0, 4), np.float32)
-    b.entry_boxes = _arr(boxes.astype(np.float32), wp.vec4, device)
+    b.entry_boxes = device_array(boxes.astype(np.float32), wp.vec4, device)
     return b

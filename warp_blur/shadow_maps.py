@@ -34,7 +34,7 @@ import warp as wp
 
 from .binning import TILE_SIZE, bin_entries, entry_pixel_bounds
 from .camera import Projection
-from .device_data import TriangleTables, make_bins, make_geometry, make_view
+from .device_data import TriangleTables, device_array, make_bins, make_geometry, make_view
 from .lights import DISK, DISTANT, RECT, SPHERE
 from .log import warn_once
 from .parallel import launch_pixels
@@ -628,12 +628,12 @@ class ShadowMaps:
             bins = bin_entries(proj, boxes, keep, WARP_TILE)
             dev = self.device
             args = [s, bins.tiles_x, WARP_TILE, key_dev,
-                    wp.array(np.ascontiguousarray(src.reshape(-1, 2), np.float32) if len(src) else np.zeros((1, 2), np.float32), dtype=wp.vec2, device=dev),
-                    wp.array(np.ascontiguousarray(dst.reshape(-1, 2), np.float32) if len(dst) else np.zeros((1, 2), np.float32), dtype=wp.vec2, device=dev),
-                    wp.array(np.ascontiguousarray(dz, np.float32) if len(dz) else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=dev),
-                    wp.array(kf if len(kf) else np.zeros(1, np.int32), dtype=int, device=dev),
-                    wp.array(bins.tile_offsets, dtype=int, device=dev),
-                    wp.array(bins.tile_entries if len(bins.tile_entries) else np.zeros(1, np.int32), dtype=int, device=dev)]
+                    device_array(src.reshape(-1, 2).astype(np.float32), wp.vec2, dev),
+                    device_array(dst.reshape(-1, 2).astype(np.float32), wp.vec2, dev),
+                    device_array(dz.astype(np.float32), wp.vec3, dev),
+                    device_array(kf.astype(np.int32), int, dev),
+                    device_array(bins.tile_offsets, int, dev),
+                    device_array(bins.tile_entries.astype(np.int32), int, dev)]
             launch_pixels(warp_texels, s * s, lambda first, _n: args + [first, out], dev, self.threads)
             self._add_time("shadow_warp", time.perf_counter() - t0)
         return out.numpy().reshape(s, s)
