@@ -147,6 +147,24 @@ def test_memory_budget_renders_in_chunks_with_the_same_image(scene_path):
     np.testing.assert_array_equal(whole.rgba, chunked.rgba)
 
 
+@pytest.mark.parametrize("bits", [128, 0])
+def test_samples_filled_again_with_more_room_give_the_same_image(scene_path, monkeypatch, bits):
+    """The fill pass stores a sample's intervals in FIRST_FILL_ROOM slots and fills a sample that
+    had more again with room for all: with room for 2, most samples that 8 crossing layers reach go
+    the second way, and the image must not change."""
+    import warp_blur.methods.analytic as analytic
+    path = moving_layers_stage(scene_path(), 8, cross=True)
+    kw = dict(frame=1, resolution=(32, 24), method="analytic", time_bits=bits, aovs=())
+    roomy = wb.render(path, **kw)
+    monkeypatch.setattr(analytic, "FIRST_FILL_ROOM", 2)
+    tight = wb.render(path, **kw)
+    assert roomy.stats["pixels_refilled"] == 0.0
+    assert tight.stats["pixels_refilled"] > 0.5 * tight.stats["pixels_with_motion"] > 0.0
+    assert tight.stats["intervals"] == roomy.stats["intervals"]
+    assert tight.stats["intervals_per_pixel_max"] > 2
+    np.testing.assert_array_equal(tight.rgba, roomy.rgba)
+
+
 def test_results_do_not_depend_on_threads(scene_path):
     path = two_quads_stage(scene_path())
     a = wb.render(path, frame=1, resolution=RES, method="analytic", aovs=(), threads=1)

@@ -2,9 +2,11 @@
 -> front-to-back sort with splitting -> temporal-visibility bitmask (or exact) resolve.
 
 Pipeline per frame: motion segments per prim (segments.py) -> tile bins, static and moving entries
-apart -> count pass (intervals.py; a pixel no moving entry reaches is resolved right there, like a
-sharp render) -> prefix sum over the other pixels -> fill pass (exact capacity per pixel, nothing
-dropped; pixel chunks when the arrays would exceed the memory budget) -> resolve (resolve.py).
+apart -> classify pass (intervals.py; a sample no moving entry reaches is resolved right there,
+like a sharp render) -> fill pass over the other samples, which computes and stores their
+intervals in one go (FIRST_FILL_ROOM each; a sample that had more is filled again with room for
+all, so nothing is dropped; pixel chunks keep the arrays within the memory budget) -> resolve
+(resolve.py).
 """
 
 from __future__ import annotations
@@ -14,13 +16,16 @@ import warp as wp
 
 from ...frame import FrameContext
 from ...parallel import launch_pixels
-from .intervals import count_intervals, fill_intervals
+from .intervals import classify_samples, fill_intervals
 from .resolve import resolve_bitmask, resolve_exact
 from .segments import prepare_motion
 
 BYTES_PER_INTERVAL = 8 + 8 + 12 + 4  # times, depths, radiance, sort index
 MAX_EXACT_EVENTS = 1 << 16
-# Samples that no moving entry reaches are resolved in the count pass, with the resolve's own
+# Intervals of room per listed sample in the first fill: most samples need fewer (the large
+# scene's moving pixels average ~40); those that need more are filled again with exact room.
+FIRST_FILL_ROOM = 64
+# Samples that no moving entry reaches are resolved in the classify pass, with the resolve's own
 # weights (tests switch this off to compare against resolving stored intervals).
 DIRECT_STATIC_PIXELS = True
 
@@ -38,82 +43,128 @@ def pixel_chunks(offsets: np.ndarray, budget_intervals: int) -> list[tuple[int, 
     return chunks
 
 
+class _IntervalPass:
+    """Fill and resolve listed samples of one sub-pixel position, chunk by chunk (arrays sized to
+    each chunk's room), and keep the interval statistics."""
+
+    def __init__(self, ctx: FrameContext, view, geo, sh, moving_bins, sub: wp.vec2, n_shade: int,
+                 lights_static: int, static_hit: wp.array, rgba: wp.array, weight: float,
+                 fallbacks: wp.array, truncated: wp.array) -> None:
+        self.ctx, self.view, self.geo, self.sh, self.moving_bins = ctx, view, geo, sh, moving_bins
+        self.sub, self.n_shade, self.lights_static = sub, n_shade, lights_static
+        self.static_hit, self.rgba, self.weight = static_hit, rgba, weight
+        self.fallbacks, self.truncated = fallbacks, truncated
+        self.scratch = wp.zeros(1, dtype=int, device=ctx.device)
+        self.total, self.max, self.peak_bytes, self.chunks, self.refilled = 0, 0, 0, 0, 0
+
+    def fill(self, pixels_np: np.ndarray, spans_np: np.ndarray, count_fallbacks: bool):
+        """Run the fill pass for samples pixels_np with (start, end) room spans_np: (counts, arrays)."""
+        ctx, dev = self.ctx, self.ctx.device
+        n_iv = max(int(spans_np[:, 1].max()) if len(spans_np) else 0, 1)
+        self.peak_bytes = max(self.peak_bytes, n_iv * BYTES_PER_INTERVAL)
+        self.chunks += 1
+        arrays = (wp.empty(n_iv, dtype=wp.vec2, device=dev), wp.empty(n_iv, dtype=wp.vec2, device=dev),
+                  wp.empty(n_iv, dtype=wp.vec3, device=dev))
+        pixels = wp.array(pixels_np, dtype=int, device=dev)
+        spans = wp.array(spans_np, dtype=wp.vec2i, device=dev)
+        counts = wp.zeros(len(pixels_np), dtype=int, device=dev)
+        fallbacks = self.fallbacks if count_fallbacks else self.scratch
+        with ctx.timed("fill"):
+            launch_pixels(fill_intervals, len(pixels_np),
+                          lambda first, _n: [self.view, self.geo, self.sh, self.moving_bins, self.sub, self.n_shade,
+                                             self.lights_static, pixels, first, spans, self.static_hit, counts,
+                                             fallbacks, *arrays], dev, ctx.settings.threads)
+        return counts.numpy(), arrays
+
+    def resolve(self, pixels_np: np.ndarray, spans_np: np.ndarray, arrays) -> None:
+        """Resolve samples pixels_np whose intervals are spans_np of `arrays` into rgba."""
+        if len(pixels_np) == 0:
+            return
+        ctx, dev, s = self.ctx, self.ctx.device, self.ctx.settings
+        bits = s.resolved_time_bits
+        words = max((bits + 31) // 32, 1)
+        dome = wp.vec3(*[float(x) for x in ctx.scene.dome])
+        iv_t, iv_z, iv_rgb = arrays
+        pixels = wp.array(pixels_np.astype(np.int32), dtype=int, device=dev)
+        spans = wp.array(spans_np.astype(np.int32), dtype=wp.vec2i, device=dev)
+        with ctx.timed("resolve"):
+            if bits > 0:
+                order = wp.empty(iv_t.shape[0], dtype=int, device=dev)
+                launch_pixels(resolve_bitmask, len(pixels_np),
+                              lambda first, n: [self.view, dome, pixels, spans, iv_t, iv_z, iv_rgb, bits, self.weight,
+                                                first, first, order,
+                                                wp.zeros((n, 2 * words), dtype=wp.uint32, device=dev), self.rgba],
+                              dev, s.threads)
+            else:
+                launch_pixels(resolve_exact, len(pixels_np),
+                              lambda first, _n: [self.view, dome, pixels, spans, iv_t, iv_z, iv_rgb, self.weight,
+                                                 first, MAX_EXACT_EVENTS, self.truncated, self.rgba], dev, s.threads)
+
+    def run(self, pixels_np: np.ndarray, budget: int) -> None:
+        """Fill (FIRST_FILL_ROOM each) and resolve the listed samples; refill those that had more."""
+        room = max(1, min(FIRST_FILL_ROOM, budget))
+        per_chunk = max(1, budget // room)
+        for c0 in range(0, len(pixels_np), per_chunk):
+            chunk = pixels_np[c0:c0 + per_chunk]
+            starts = np.arange(len(chunk), dtype=np.int64) * room
+            counts, arrays = self.fill(chunk, np.stack([starts, starts + room], axis=1).astype(np.int32), True)
+            self.total += int(counts.sum())
+            self.max = max(self.max, int(counts.max()))
+            fits = counts <= room
+            self.resolve(chunk[fits], np.stack([starts[fits], starts[fits] + counts[fits]], axis=1), arrays)
+            del arrays
+            over, over_counts = chunk[~fits], counts[~fits]
+            self.refilled += len(over)
+            offsets = np.concatenate([[0], np.cumsum(over_counts, dtype=np.int64)])
+            for p0, p1 in pixel_chunks(offsets, budget):
+                spans = np.stack([offsets[p0:p1], offsets[p0 + 1:p1 + 1]], axis=1) - offsets[p0]
+                refill_counts, arrays = self.fill(over[p0:p1], spans.astype(np.int32), False)
+                assert np.array_equal(refill_counts, over_counts[p0:p1]), "refill counted differently"
+                self.resolve(over[p0:p1], spans, arrays)
+                del arrays
+
+
 def render_analytic(ctx: FrameContext) -> np.ndarray:
     s = ctx.settings
     bits = s.resolved_time_bits
     n_shade = s.resolved_samples
     dev = ctx.device
     plan, geo, (static_bins, moving_bins), sh, view = prepare_motion(ctx)
-    dome = wp.vec3(*[float(x) for x in ctx.scene.dome])
     num_px = ctx.num_pixels
     rgba = wp.zeros((num_px, 4), dtype=float, device=dev)
     fallbacks = wp.zeros(1, dtype=int, device=dev)
     truncated = wp.zeros(1, dtype=int, device=dev)
-    dummy2 = wp.zeros(1, dtype=wp.vec2, device=dev)
-    dummy3 = wp.zeros(1, dtype=wp.vec3, device=dev)
-    words = max((bits + 31) // 32, 1)
-    budget = int(s.memory_budget_mb * 2**20 // BYTES_PER_INTERVAL)
+    # int32 interval indices: chunks stay below 2**30 intervals
+    budget = min(int(s.memory_budget_mb * 2**20 // BYTES_PER_INTERVAL), 2**30)
     subs = ctx.sub_pixel_offsets()
     weight = 1.0 / len(subs)
     lights_static = 1 if plan.lights_static else 0
     direct = 1 if DIRECT_STATIC_PIXELS else 0
-    total_iv, max_iv, peak_bytes, num_chunks, listed = 0, 0, 0, 0, 0
+    listed_total = 0
+    passes = []
     for sub in subs:
         sub_v = wp.vec2(*sub)
-        counts = wp.zeros(num_px, dtype=int, device=dev)
+        listed = wp.zeros(num_px, dtype=int, device=dev)
         static_hit = wp.zeros(num_px, dtype=int, device=dev)
-        with ctx.timed("count"):
-            launch_pixels(count_intervals, num_px,
+        with ctx.timed("classify"):
+            launch_pixels(classify_samples, num_px,
                           lambda first, _n: [view, geo, sh, static_bins, moving_bins, sub_v, n_shade, lights_static,
-                                             direct, bits, weight, first, counts, fallbacks, dummy2, dummy2, dummy3,
-                                             static_hit, rgba], dev, s.threads)
-        counts_np = counts.numpy()
-        # pixels resolved in the count pass (no moving entry reaches them) count 0 and are not listed
-        pixels_np = np.nonzero(counts_np)[0].astype(np.int32) if direct else np.arange(num_px, dtype=np.int32)
-        listed += len(pixels_np)
-        list_counts = counts_np[pixels_np]
-        offsets_np = np.concatenate([[0], np.cumsum(list_counts, dtype=np.int64)])
-        if offsets_np[-1] >= 2**31:
-            # int32 offsets: render in chunks whose local offsets stay small
-            budget = min(budget, 2**30)
-        total_iv += int(offsets_np[-1])
-        max_iv = max(max_iv, int(counts_np.max()) if len(counts_np) else 0)
-        chunks = pixel_chunks(offsets_np, budget)
-        num_chunks += len(chunks)
-        offsets = wp.array(offsets_np.clip(max=2**31 - 1).astype(np.int32), dtype=int, device=dev)
-        pixels = wp.array(pixels_np, dtype=int, device=dev)
-        for p0, p1 in chunks:
-            base = int(offsets_np[p0])
-            n_iv = int(offsets_np[p1] - base)
-            peak_bytes = max(peak_bytes, n_iv * BYTES_PER_INTERVAL)
-            iv_t = wp.zeros(max(n_iv, 1), dtype=wp.vec2, device=dev)
-            iv_z = wp.zeros(max(n_iv, 1), dtype=wp.vec2, device=dev)
-            iv_rgb = wp.zeros(max(n_iv, 1), dtype=wp.vec3, device=dev)
-            order = wp.zeros(max(n_iv, 1), dtype=int, device=dev)
-            with ctx.timed("fill"):
-                launch_pixels(fill_intervals, p1 - p0,
-                              lambda first, _n: [view, geo, sh, moving_bins, sub_v, n_shade, lights_static, pixels,
-                                                 first, offsets, base, fallbacks, iv_t, iv_z, iv_rgb, static_hit],
-                              dev, s.threads, start=p0)
-            with ctx.timed("resolve"):
-                if bits > 0:
-                    launch_pixels(resolve_bitmask, p1 - p0,
-                                  lambda first, n: [view, dome, pixels, offsets, base, iv_t, iv_z, iv_rgb, bits,
-                                                    weight, first, first, order,
-                                                    wp.zeros((n, 2 * words), dtype=wp.uint32, device=dev), rgba],
-                                  dev, s.threads, start=p0)
-                else:
-                    launch_pixels(resolve_exact, p1 - p0,
-                                  lambda first, _n: [view, dome, pixels, offsets, base, iv_t, iv_z, iv_rgb, weight,
-                                                     first, MAX_EXACT_EVENTS, truncated, rgba], dev, s.threads,
-                                  start=p0)
+                                             direct, bits, weight, first, listed, static_hit, rgba], dev, s.threads)
+        pixels_np = np.nonzero(listed.numpy())[0].astype(np.int32)
+        listed_total += len(pixels_np)
+        interval_pass = _IntervalPass(ctx, view, geo, sh, moving_bins, sub_v, n_shade, lights_static, static_hit,
+                                      rgba, weight, fallbacks, truncated)
+        interval_pass.run(pixels_np, budget)
+        passes.append(interval_pass)
     samples_total = max(num_px * len(subs), 1)
+    total_iv = sum(p.total for p in passes)
     ctx.counters.update({
         "time_bits": bits, "shading_samples_max": n_shade, "motion_segments": plan.segments_per_prim,
         "motion_segment_error_px": plan.max_error_px, "motion_snapshots": plan.snapshots, "motion_segments_capped": plan.capped, "entries": int(len(plan.entry_tri)),
         "intervals": total_iv, "intervals_per_pixel_mean": total_iv / samples_total,
-        "intervals_per_pixel_max": max_iv, "interval_bytes_peak": peak_bytes, "interval_chunks": num_chunks,
-        "pixels_with_motion": listed / samples_total,
+        "intervals_per_pixel_max": max(p.max for p in passes), "interval_bytes_peak": max(p.peak_bytes for p in passes),
+        "interval_chunks": sum(p.chunks for p in passes), "pixels_with_motion": listed_total / samples_total,
+        "pixels_refilled": sum(p.refilled for p in passes) / samples_total,
         "near_far_fallbacks": int(fallbacks.numpy()[0]), "exact_truncations": int(truncated.numpy()[0]),
     })
     return rgba.numpy()

@@ -1,4 +1,4 @@
-"""Per-pixel coverage intervals of moving triangles, exactly (count pass and fill pass).
+"""Per-pixel coverage intervals of moving triangles, exactly (classify pass and fill pass).
 
 An entry's vertices move linearly in camera space over its span; where it covers a pixel ray is
 found exactly by coverage.py (edge-function quadratics, their roots, a sign test per piece).
@@ -10,7 +10,10 @@ Each covered piece is then:
   one for emissive-only materials or a static triangle under static lights; otherwise the
   radiance at the piece's ends and middle decides how many (steps of 1/256, up to the
   `samples` cap), each stored as an interval (u0, u1, z0, z1, radiance at its middle).
-Both passes run the same function, so the fill writes exactly as many intervals as were counted.
+The classify pass finds each sample's nearest static surface and whether any moving entry can
+reach it in front (no shading); the fill pass computes and stores the intervals of the samples
+it lists in one go, each in a span of room, and reports how many there were, so a sample that
+needed more room is filled again with exactly that much.
 """
 
 from __future__ import annotations
@@ -120,14 +123,15 @@ def piece_radiance(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o:
 
 @wp.func
 def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
-                s_a: float, s_b: float, n_shade_max: int, constant_radiance: int, write: int, base: int,
+                s_a: float, s_b: float, n_shade_max: int, constant_radiance: int, limit: int, base: int,
                 iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3)) -> int:
-    """Store [s_a, s_b] (already known covered and within the clipping range) as intervals."""
+    """Store [s_a, s_b] (already known covered and within the clipping range) as intervals at
+    base, base + 1, ... (those below `limit` only: limit 0 counts); returns how many it has."""
     n = piece_count(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, constant_radiance)
-    if write != 0:
+    if base < limit:
         du = m.u1 - m.u0
         z_prev = depth_at(m, o, d, s_a)
-        for i in range(n):
+        for i in range(wp.min(n, limit - base)):
             s0 = s_a + (s_b - s_a) * float(i) / float(n)
             s1 = s_a + (s_b - s_a) * float(i + 1) / float(n)
             z1 = depth_at(m, o, d, s_b)
@@ -142,15 +146,14 @@ def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp
 
 @wp.func
 def emit_clipped(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
-                 s_a: float, s_b: float, may_clip: int, n_shade_max: int, constant_radiance: int, write: int,
+                 s_a: float, s_b: float, may_clip: int, n_shade_max: int, constant_radiance: int, limit: int,
                  base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
                  iv_rgb: wp.array(dtype=wp.vec3), fallbacks: wp.array(dtype=int)) -> int:
     """Emit the part of a covered piece inside the clipping range (sampled when it may cross)."""
     if may_clip == 0:
-        return emit_pieces(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, constant_radiance, write, base,
+        return emit_pieces(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, constant_radiance, limit, base,
                            iv_t, iv_z, iv_rgb)
-    if write == 0:
-        wp.atomic_add(fallbacks, 0, 1)
+    wp.atomic_add(fallbacks, 0, 1)
     count = int(0)
     prev_s = s_a
     prev_in = in_range(view, depth_at(m, o, d, s_a))
@@ -171,13 +174,13 @@ def emit_clipped(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: w
                 # leaving the range: keep [start, lo] (the inside end of the bracket)
                 if lo > start:
                     count += emit_pieces(view, geo, sh, e, m, o, d, start, lo, n_shade_max, constant_radiance,
-                                         write, base + count, iv_t, iv_z, iv_rgb)
+                                         limit, base + count, iv_t, iv_z, iv_rgb)
             else:
                 start = hi
         prev_in = now_in
         prev_s = s
     if prev_in and s_b > start:
-        count += emit_pieces(view, geo, sh, e, m, o, d, start, s_b, n_shade_max, constant_radiance, write,
+        count += emit_pieces(view, geo, sh, e, m, o, d, start, s_b, n_shade_max, constant_radiance, limit,
                              base + count, iv_t, iv_z, iv_rgb)
     return count
 
@@ -224,10 +227,11 @@ def entry_moving(geo: Geometry, e: int) -> Moving:
 
 @wp.func
 def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, n_shade_max: int,
-                    lights_static: int, write: int, base: int, iv_t: wp.array(dtype=wp.vec2),
+                    lights_static: int, limit: int, base: int, iv_t: wp.array(dtype=wp.vec2),
                     iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3),
                     fallbacks: wp.array(dtype=int)) -> int:
-    """Count (write=0) or store (write=1, at base) the coverage intervals of entry e at a pixel ray."""
+    """The number of coverage intervals of entry e at a pixel ray, stored at base, base + 1, ...
+    where below `limit` (limit 0 only counts)."""
     vi = geo.tri_vertices[geo.entry_tri[e]]
     k0 = geo.entry_k0[e]
     k1 = geo.entry_k1[e]
@@ -239,7 +243,7 @@ def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, 
         if hit[0] == 0.0 or not in_range(view, hit[1]):
             return 0
         return emit_pieces(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max, static_constant(geo, sh, e, lights_static),
-                           write, base, iv_t, iv_z, iv_rgb)
+                           limit, base, iv_t, iv_z, iv_rgb)
     a0 = m.a0 - o
     b0 = m.b0 - o
     c0 = m.c0 - o
@@ -261,7 +265,7 @@ def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, 
             sm = 0.5 * (s_prev + s_next)
             if piece_covered(ca, cb, cc, dga, dgb, dgc, a0, da, b0, db, c0, dc, vi, sm, 0) != 0:
                 count += emit_clipped(view, geo, sh, e, m, o, d, s_prev, s_next, may_clip, n_shade_max,
-                                      emissive_only, write, base + count, iv_t, iv_z, iv_rgb, fallbacks)
+                                      emissive_only, limit, base + count, iv_t, iv_z, iv_rgb, fallbacks)
             s_prev = s_next
     return count
 
@@ -292,26 +296,72 @@ def nearest_static(view: View, geo: Geometry, static_bins: Bins, tile: int, sx: 
 
 
 @wp.func
+def moving_zmin(m: Moving) -> float:
+    """Nearest view depth of the entry's six vertices (its hits are convex combinations of them)."""
+    return wp.min(wp.min(wp.min(-m.a0[2], -m.b0[2]), wp.min(-m.c0[2], -m.a1[2])), wp.min(-m.b1[2], -m.c1[2]))
+
+
+@wp.func
+def may_show(view: View, m: Moving, z_static: float) -> bool:
+    """False when the entry lies entirely behind the nearest static surface (depth z_static)."""
+    return view.ortho != 0 or moving_zmin(m) <= z_static
+
+
+@wp.func
 def moving_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, tile: int, sx: float, sy: float,
-                     o: wp.vec3, d: wp.vec3, z_static: float, n_shade_max: int, lights_static: int, write: int,
+                     o: wp.vec3, d: wp.vec3, z_static: float, n_shade_max: int, lights_static: int, limit: int,
                      base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
                      iv_rgb: wp.array(dtype=wp.vec3), fallbacks: wp.array(dtype=int)) -> int:
-    """Count or store the intervals of the moving entries at a sample, skipping those entirely
-    behind the nearest static surface (depth z_static)."""
+    """Count, and store below `limit`, the intervals of the moving entries at a sample, skipping
+    those entirely behind the nearest static surface (depth z_static)."""
     n = int(0)
     for i in range(moving_bins.tile_offsets[tile], moving_bins.tile_offsets[tile + 1]):
         e = moving_bins.tile_entries[i]
         if not box_rejects(moving_bins, e, sx, sy):
-            k0 = geo.entry_k0[e]
-            k1 = geo.entry_k1[e]
-            vi = geo.tri_vertices[geo.entry_tri[e]]
-            zmin = wp.min(wp.min(wp.min(-geo.positions[k0, vi[0]][2], -geo.positions[k0, vi[1]][2]),
-                                 wp.min(-geo.positions[k0, vi[2]][2], -geo.positions[k1, vi[0]][2])),
-                          wp.min(-geo.positions[k1, vi[1]][2], -geo.positions[k1, vi[2]][2]))
-            if view.ortho != 0 or zmin <= z_static:
-                n += entry_intervals(view, geo, sh, e, o, d, n_shade_max, lights_static, write, base + n, iv_t,
+            if may_show(view, entry_moving(geo, e), z_static):
+                n += entry_intervals(view, geo, sh, e, o, d, n_shade_max, lights_static, limit, base + n, iv_t,
                                      iv_z, iv_rgb, fallbacks)
     return n
+
+
+@wp.func
+def entry_reaches(view: View, geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> bool:
+    """True when entry e covers the ray at some time of its span (a piece clipped away by the
+    near/far planes still counts: the answer may err only towards True)."""
+    vi = geo.tri_vertices[geo.entry_tri[e]]
+    m = entry_moving(geo, e)
+    if geo.entry_k0[e] == geo.entry_k1[e]:
+        hit = intersect_triangle(o, d, m.a0, m.b0, m.c0, vi)
+        return hit[0] != 0.0 and in_range(view, hit[1])
+    a0 = m.a0 - o
+    b0 = m.b0 - o
+    c0 = m.c0 - o
+    da = m.a1 - m.a0
+    db = m.b1 - m.b0
+    dc = m.c1 - m.c0
+    ca, cb, cc, ra, rb, rc, dga, dgb, dgc = prism_edges(d, a0, da, b0, db, c0, dc, vi, DEGENERATE_TOL_F32)
+    s_prev = float(0.0)
+    for _step in range(MAX_SPAN_PIECES):
+        if s_prev < 1.0:
+            s_next = next_breakpoint(ra, rb, rc, s_prev)
+            if piece_covered(ca, cb, cc, dga, dgb, dgc, a0, da, b0, db, c0, dc, vi, 0.5 * (s_prev + s_next), 0) != 0:
+                return True
+            s_prev = s_next
+    return False
+
+
+@wp.func
+def moving_reaches(view: View, geo: Geometry, moving_bins: Bins, tile: int, sx: float, sy: float, o: wp.vec3,
+                   d: wp.vec3, z_static: float) -> bool:
+    """True when some moving entry may have an interval at the sample (moving_intervals > 0 is
+    then possible; False guarantees it is 0), without shading anything."""
+    for i in range(moving_bins.tile_offsets[tile], moving_bins.tile_offsets[tile + 1]):
+        e = moving_bins.tile_entries[i]
+        if not box_rejects(moving_bins, e, sx, sy):
+            if may_show(view, entry_moving(geo, e), z_static):
+                if entry_reaches(view, geo, e, o, d):
+                    return True
+    return False
 
 
 @wp.func
@@ -341,16 +391,13 @@ def static_color(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: 
 
 
 @wp.kernel(enable_backward=False)
-def count_intervals(view: View, geo: Geometry, sh: Shading, static_bins: Bins, moving_bins: Bins, sub: wp.vec2,
-                    n_shade_max: int, lights_static: int, direct: int, bits: int, weight: float, first_pixel: int,
-                    # outputs
-                    counts: wp.array(dtype=int), fallbacks: wp.array(dtype=int),
-                    iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3),
-                    static_hit: wp.array(dtype=int), rgba: wp.array2d(dtype=float)):
-    """counts[pix] = number of intervals at the pixel's sample (iv_* are not written);
-    static_hit[pix] = its nearest static entry (or -1), reused by the fill pass. With direct = 1, a
-    sample no moving entry reaches is resolved here (rgba += weight × its colour) and counts 0:
-    static pixels cost what a sharp render costs, and the fill and resolve skip them."""
+def classify_samples(view: View, geo: Geometry, sh: Shading, static_bins: Bins, moving_bins: Bins, sub: wp.vec2,
+                     n_shade_max: int, lights_static: int, direct: int, bits: int, weight: float, first_pixel: int,
+                     # outputs
+                     listed: wp.array(dtype=int), static_hit: wp.array(dtype=int), rgba: wp.array2d(dtype=float)):
+    """static_hit[pix] = the sample's nearest static entry (or -1), reused by the fill pass. With
+    direct = 1, a sample no moving entry reaches is resolved here (rgba += weight × its colour,
+    listed 0): static pixels cost what a sharp render costs. Other samples get listed 1."""
     pix = first_pixel + wp.tid()
     px = pix % view.width
     py = pix // view.width
@@ -360,31 +407,29 @@ def count_intervals(view: View, geo: Geometry, sh: Shading, static_bins: Bins, m
     tile = pixel_tile(view, px, py)
     e_static, z_static = nearest_static(view, geo, static_bins, tile, sx, sy, o, d)
     static_hit[pix] = e_static
-    n = moving_intervals(view, geo, sh, moving_bins, tile, sx, sy, o, d, z_static, n_shade_max, lights_static, 0, 0,
-                         iv_t, iv_z, iv_rgb, fallbacks)
-    if n == 0 and direct != 0:
+    if direct != 0 and not moving_reaches(view, geo, moving_bins, tile, sx, sy, o, d, z_static):
         c = static_color(view, geo, sh, e_static, o, d, n_shade_max, lights_static, bits)
         add_pixel(rgba, pix, weight, wp.vec3(c[0], c[1], c[2]), c[3])
-        counts[pix] = 0
-        return
-    if e_static >= 0:
-        n += entry_intervals(view, geo, sh, e_static, o, d, n_shade_max, lights_static, 0, 0, iv_t, iv_z, iv_rgb,
-                             fallbacks)
-    counts[pix] = n
+        listed[pix] = 0
+    else:
+        listed[pix] = 1
 
 
 @wp.kernel(enable_backward=False)
 def fill_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, sub: wp.vec2, n_shade_max: int,
-                   lights_static: int, pixels: wp.array(dtype=int), first: int, offsets: wp.array(dtype=int),
-                   chunk_base: int,
+                   lights_static: int, pixels: wp.array(dtype=int), first: int, spans: wp.array(dtype=wp.vec2i),
+                   static_hit: wp.array(dtype=int),
                    # outputs
-                   fallbacks: wp.array(dtype=int), iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
-                   iv_rgb: wp.array(dtype=wp.vec3), static_hit: wp.array(dtype=int)):
-    """Store the intervals of listed pixel k = first + tid (pixel pixels[k]) at offsets[k] - chunk_base
-    in the chunk's arrays: the moving entries' first, then the nearest static entry's."""
+                   counts: wp.array(dtype=int), fallbacks: wp.array(dtype=int), iv_t: wp.array(dtype=wp.vec2),
+                   iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3)):
+    """Listed sample k = first + tid (pixel pixels[k]): counts[k] = its number of intervals (the
+    moving entries' first, then its nearest static entry's), stored from spans[k][0] on in the
+    chunk's arrays as far as they fit below spans[k][1]. One pass computes and stores; a sample
+    whose count exceeds its span is filled again with room for all (see render_analytic)."""
     k = first + wp.tid()
     pix = pixels[k]
-    base = offsets[k] - chunk_base
+    base = spans[k][0]
+    limit = spans[k][1]
     px = pix % view.width
     py = pix // view.width
     o, d = sample_ray(view, px, py, sub)
@@ -395,7 +440,8 @@ def fill_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, su
     if e_static >= 0:
         z_static = static_entry_hit(geo, e_static, o, d)[1]
     n = moving_intervals(view, geo, sh, moving_bins, pixel_tile(view, px, py), sx, sy, o, d, z_static, n_shade_max,
-                         lights_static, 1, base, iv_t, iv_z, iv_rgb, fallbacks)
+                         lights_static, limit, base, iv_t, iv_z, iv_rgb, fallbacks)
     if e_static >= 0:
-        entry_intervals(view, geo, sh, e_static, o, d, n_shade_max, lights_static, 1, base + n, iv_t, iv_z, iv_rgb,
-                        fallbacks)
+        n += entry_intervals(view, geo, sh, e_static, o, d, n_shade_max, lights_static, limit, base + n, iv_t, iv_z,
+                             iv_rgb, fallbacks)
+    counts[k] = n

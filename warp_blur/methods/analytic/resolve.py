@@ -76,18 +76,18 @@ def sort_by_near_depth(order: wp.array(dtype=int), iv_z: wp.array(dtype=wp.vec2)
 
 
 @wp.kernel(enable_backward=False)
-def resolve_bitmask(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), offsets: wp.array(dtype=int),
-                    chunk_base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
+def resolve_bitmask(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
+                    iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
                     iv_rgb: wp.array(dtype=wp.vec3), bits: int, weight: float, first: int, band_first: int,
                     # outputs
                     order: wp.array(dtype=int), masks: wp.array2d(dtype=wp.uint32), rgba: wp.array2d(dtype=float)):
-    """rgba[pixels[k]] += weight × the resolved colour of listed pixel k = first + tid (intervals
-    offsets[k]:offsets[k+1], less chunk_base); masks is per-thread scratch (band rows, 2×words)."""
+    """rgba[pixels[k]] += weight × the resolved colour of listed sample k = first + tid (intervals
+    spans[k][0]:spans[k][1] of the chunk's arrays); masks is per-thread scratch (band rows, 2×words)."""
     k = first + wp.tid()
     pix = pixels[k]
     row = k - band_first
-    lo = offsets[k] - chunk_base
-    hi = offsets[k + 1] - chunk_base
+    lo = spans[k][0]
+    hi = spans[k][1]
     words = (bits + 31) // 32
     for w in range(2 * words):
         masks[row, w] = wp.uint32(0)
@@ -149,17 +149,17 @@ def resolve_bitmask(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), offs
 
 
 @wp.kernel(enable_backward=False)
-def resolve_exact(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), offsets: wp.array(dtype=int),
-                  chunk_base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
+def resolve_exact(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
+                  iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
                   iv_rgb: wp.array(dtype=wp.vec3), weight: float, first: int, max_events: int,
                   # outputs
                   truncated: wp.array(dtype=int), rgba: wp.array2d(dtype=float)):
-    """rgba[pixels[k]] += weight × the exact time average of listed pixel k = first + tid (sweep
-    over events; no quantisation)."""
+    """rgba[pixels[k]] += weight × the exact time average of listed sample k = first + tid
+    (intervals spans[k][0]:spans[k][1]; sweep over events; no quantisation)."""
     k = first + wp.tid()
     pix = pixels[k]
-    lo = offsets[k] - chunk_base
-    hi = offsets[k + 1] - chunk_base
+    lo = spans[k][0]
+    hi = spans[k][1]
     color = wp.vec3(0.0, 0.0, 0.0)
     cover = float(0.0)
     tau = float(0.0)
