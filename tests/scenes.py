@@ -105,3 +105,21 @@ def shadow_stage(path: str, occluder_samples=None, occluder_at=(-0.6, 1.0, 0.0),
                       rotate_axis="X", rotate=-90.0)
     stage.GetRootLayer().Save()
     return path
+
+
+def ramp_light_stage(path: str) -> str:
+    """A static grey quad under a distant light whose intensity ramps linearly over the shutter
+    (radiance exactly linear in time), half hidden for part of the shutter by an emissive quad
+    sweeping in front of it."""
+    stage = new_stage(path)
+    add_camera(stage)
+    add_dome(stage)
+    sun = add_distant_light(stage, "/World/Sun", rotate=(-20, 10, 0), shadows=False)
+    sun.GetIntensityAttr().Set(0.5, 0.5)
+    sun.GetIntensityAttr().Set(4.0, 1.5)
+    grey = add_material(stage, "/World/Looks/Grey", diffuse=(0.6, 0.6, 0.6))
+    emit = add_material(stage, "/World/Looks/Emit", emissive=(0.9, 0.3, 0.1))
+    add_quad(stage, "/World/Back", 3.0, 2.0, material=grey, translate=(0, 0, -2))
+    add_quad(stage, "/World/Sweep", 0.5, 2.5, material=emit, translate_samples={0.5: (-3.0, 0, 0), 1.5: (3.0, 0, 0)})
+    stage.GetRootLayer().Save()
+    return path

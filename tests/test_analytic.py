@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 from conftest import ACCEPTANCE
-from scenes import emissive_quad_stage, lit_stage, moving_layers_stage, shadow_stage, two_quads_stage
+from scenes import emissive_quad_stage, lit_stage, moving_layers_stage, ramp_light_stage, shadow_stage, two_quads_stage
 
 import warp_blur as wb
 from warp_blur.metrics import max_abs, rmse
@@ -137,6 +137,28 @@ def test_1024_bits_agree_with_exact_mode(scene_path):
     bits = wb.render(path, frame=1, resolution=RES, method="analytic", time_bits=1024, aovs=())
     assert rmse(bits.rgba, exact.rgba) <= 5e-4
     assert max_abs(bits.rgba, exact.rgba) <= 2.0 / 1024 * 2
+
+
+def test_radiance_linear_in_time_is_integrated_exactly_over_partial_visibility(scene_path):
+    """A light ramping linearly over the shutter makes the back quad's radiance linear in time;
+    intervals carry radiance at both ends, so where a sweeping quad hides part of the shutter the
+    visible part's average is exact with one piece per interval: 1024 bits equal accumulation
+    at the same 1024 instants (up to float rounding), and a higher shading-sample cap adds no
+    pieces."""
+    path = ramp_light_stage(scene_path())
+    res = (64, 48)
+    ref = wb.render(path, frame=1, resolution=res, samples=1024, aovs=(), shadows="off")
+    intervals = set()
+    for samples in (2, 16):
+        bits = wb.render(path, frame=1, resolution=res, method="analytic", samples=samples, time_bits=1024, aovs=())
+        assert 0.2 < bits.stats["pixels_with_motion"] < 0.8
+        assert rmse(bits.rgba, ref.rgba) <= 1e-5
+        assert max_abs(bits.rgba, ref.rgba) <= 5e-5
+        exact = wb.render(path, frame=1, resolution=res, method="analytic", samples=samples, time_bits=0, aovs=())
+        assert rmse(exact.rgba, ref.rgba) <= 3e-4
+        assert max_abs(exact.rgba, ref.rgba) <= 2e-3
+        intervals |= {bits.stats["intervals"], exact.stats["intervals"]}
+    assert len(intervals) == 1
 
 
 def test_memory_budget_renders_in_chunks_with_the_same_image(scene_path):

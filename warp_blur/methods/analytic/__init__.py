@@ -17,10 +17,10 @@ import warp as wp
 from ...frame import FrameContext
 from ...parallel import launch_pixels
 from .intervals import classify_samples, fill_intervals
-from .resolve import resolve_bitmask, resolve_exact
+from .resolve import RadiancePair, resolve_bitmask, resolve_exact
 from .segments import prepare_motion
 
-BYTES_PER_INTERVAL = 8 + 8 + 12 + 4  # times, depths, radiance, sort index
+BYTES_PER_INTERVAL = 8 + 8 + 24 + 4  # times, depths, radiance at both ends, sort index
 MAX_EXACT_EVENTS = 1 << 16
 # Intervals of room per listed sample in the first fill: most samples need fewer (the large
 # scene's moving pixels average ~40); those that need more are filled again with exact room.
@@ -64,7 +64,7 @@ class _IntervalPass:
         self.peak_bytes = max(self.peak_bytes, n_iv * BYTES_PER_INTERVAL)
         self.chunks += 1
         arrays = (wp.empty(n_iv, dtype=wp.vec2, device=dev), wp.empty(n_iv, dtype=wp.vec2, device=dev),
-                  wp.empty(n_iv, dtype=wp.vec3, device=dev))
+                  wp.empty(n_iv, dtype=RadiancePair, device=dev))
         pixels = wp.array(pixels_np, dtype=int, device=dev)
         spans = wp.array(spans_np, dtype=wp.vec2i, device=dev)
         counts = wp.zeros(len(pixels_np), dtype=int, device=dev)

@@ -7,9 +7,10 @@ Each covered piece is then:
   depth is sampled at 9 points and crossings are found by bisection (a *sampled fallback*,
   counted in the stats as `near_far_fallbacks`);
 - split where view depth is far from linear (checked at the midpoint) and into shading pieces:
-  one for emissive-only materials or a static triangle under static lights; otherwise the
-  radiance at the piece's ends and middle decides how many (steps of 1/256, up to the
-  `samples` cap), each stored as an interval (u0, u1, z0, z1, radiance at its middle).
+  one constant radiance for emissive-only materials or a static triangle under static lights;
+  otherwise radiance at both ends of each piece (linear in time), with as many pieces as the
+  radiance's curvature (its middle against its ends) needs to stay within 1/1024 of linear (up to
+  the `samples` cap), each stored as an interval (u0, u1, z0, z1, radiance at u0 and at u1).
 The classify pass finds each sample's nearest static surface and whether any moving entry can
 reach it in front (no shading); the fill pass computes and stores the intervals of the samples
 it lists in one go, each in a span of room, and reports how many there were, so a sample that
@@ -25,7 +26,7 @@ from ...raster import add_pixel, box_rejects, pixel_tile
 from ...rays import hit_from_edges, intersect_triangle, pixel_ray_direction, pixel_ray_origin, static_entry_hit
 from ...shading import max_component, shade_entry_hit, shade_entry_hit_span
 from .coverage import DEGENERATE_TOL_F32, MAX_SPAN_PIECES, next_breakpoint, piece_covered, prism_edges
-from .resolve import span_slots
+from .resolve import RadiancePair, radiance_at, radiance_pair, span_slots
 
 MAX_PIECES = 16
 CLIP_SAMPLES = 8
@@ -85,10 +86,17 @@ def shade_at(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.ve
 
 
 @wp.func
-def piece_count(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
-                s_a: float, s_b: float, n_shade_max: int, constant_radiance: int) -> int:
-    """How many intervals [s_a, s_b] is stored as: split where view depth is far from linear and
-    into as many shading pieces as the radiance change along it needs (1/256 steps, capped)."""
+def piece_plan(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
+               s_a: float, s_b: float, n_shade_max: int, constant_radiance: int):
+    """How [s_a, s_b] is stored: (pieces, linear, radiance at s_a, at the middle, at s_b).
+
+    Pieces split where view depth is far from linear. With linear = 1 each piece carries the
+    radiance at its two ends (the resolve interpolates in time) and pieces also split where the
+    radiance curves: its middle off the ends' mean by c makes n >= sqrt(4 c × 256) pieces (capped
+    at `samples`), which keeps a smoothly curving radiance (off linear by c / n² per piece)
+    within 1/1024 of each piece's line. With linear = 0 (emissive-only, constant lighting of a
+    static surface, or one shading sample) each piece is one radiance at its middle, shadows
+    averaged over its span."""
     z_a = depth_at(m, o, d, s_a)
     z_b = depth_at(m, o, d, s_b)
     z_m = depth_at(m, o, d, 0.5 * (s_a + s_b))
@@ -97,15 +105,19 @@ def piece_count(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp
     n = int(1)
     if err > tol and tol > 0.0:
         n = wp.min(int(wp.ceil(wp.sqrt(err / tol))), MAX_PIECES)
+    linear = int(0)
+    la = wp.vec3(0.0, 0.0, 0.0)
+    lm = wp.vec3(0.0, 0.0, 0.0)
+    lb = wp.vec3(0.0, 0.0, 0.0)
     if constant_radiance == 0 and n_shade_max > 1:
+        linear = 1
         la = shade_at(view, geo, sh, e, m, o, d, s_a)
         lm = shade_at(view, geo, sh, e, m, o, d, 0.5 * (s_a + s_b))
         lb = shade_at(view, geo, sh, e, m, o, d, s_b)
-        dev = wp.max(max_component(wp.abs(la - lm)), max_component(wp.abs(lm - lb)))
-        dev = wp.max(dev, max_component(wp.abs(lm - 0.5 * (la + lb))) * 4.0)
-        ns = int(wp.ceil(dev / SHADE_TOLERANCE))
+        dev = max_component(wp.abs(lm - 0.5 * (la + lb))) * 4.0
+        ns = int(wp.ceil(wp.sqrt(dev / SHADE_TOLERANCE)))
         n = wp.max(n, wp.clamp(ns, 1, n_shade_max))
-    return n
+    return n, linear, la, lm, lb
 
 
 @wp.func
@@ -122,15 +134,27 @@ def piece_radiance(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o:
 
 
 @wp.func
+def piece_end_radiance(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
+                       s1: float, i: int, n: int, lm: wp.vec3, lb: wp.vec3) -> wp.vec3:
+    """Radiance at the end s1 of linear piece i of n (the plan's samples where they fall there)."""
+    if i + 1 == n:
+        return lb
+    if 2 * (i + 1) == n:
+        return lm
+    return shade_at(view, geo, sh, e, m, o, d, s1)
+
+
+@wp.func
 def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
                 s_a: float, s_b: float, n_shade_max: int, constant_radiance: int, limit: int, base: int,
-                iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3)) -> int:
+                iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=RadiancePair)) -> int:
     """Store [s_a, s_b] (already known covered and within the clipping range) as intervals at
     base, base + 1, ... (those below `limit` only: limit 0 counts); returns how many it has."""
-    n = piece_count(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, constant_radiance)
+    n, linear, la, lm, lb = piece_plan(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, constant_radiance)
     if base < limit:
         du = m.u1 - m.u0
         z_prev = depth_at(m, o, d, s_a)
+        r0 = la
         for i in range(wp.min(n, limit - base)):
             s0 = s_a + (s_b - s_a) * float(i) / float(n)
             s1 = s_a + (s_b - s_a) * float(i + 1) / float(n)
@@ -139,7 +163,13 @@ def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp
                 z1 = depth_at(m, o, d, s1)
             iv_t[base + i] = wp.vec2(m.u0 + s0 * du, m.u0 + s1 * du)
             iv_z[base + i] = wp.vec2(z_prev, z1)
-            iv_rgb[base + i] = piece_radiance(view, geo, sh, e, m, o, d, s0, s1)
+            if linear != 0:
+                r1 = piece_end_radiance(view, geo, sh, e, m, o, d, s1, i, n, lm, lb)
+                iv_rgb[base + i] = radiance_pair(r0, r1)
+                r0 = r1
+            else:
+                c = piece_radiance(view, geo, sh, e, m, o, d, s0, s1)
+                iv_rgb[base + i] = radiance_pair(c, c)
             z_prev = z1
     return n
 
@@ -148,7 +178,7 @@ def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp
 def emit_clipped(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
                  s_a: float, s_b: float, may_clip: int, n_shade_max: int, constant_radiance: int, limit: int,
                  base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
-                 iv_rgb: wp.array(dtype=wp.vec3), fallbacks: wp.array(dtype=int)) -> int:
+                 iv_rgb: wp.array(dtype=RadiancePair), fallbacks: wp.array(dtype=int)) -> int:
     """Emit the part of a covered piece inside the clipping range (sampled when it may cross)."""
     if may_clip == 0:
         return emit_pieces(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, constant_radiance, limit, base,
@@ -228,7 +258,7 @@ def entry_moving(geo: Geometry, e: int) -> Moving:
 @wp.func
 def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, n_shade_max: int,
                     lights_static: int, limit: int, base: int, iv_t: wp.array(dtype=wp.vec2),
-                    iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3),
+                    iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=RadiancePair),
                     fallbacks: wp.array(dtype=int)) -> int:
     """The number of coverage intervals of entry e at a pixel ray, stored at base, base + 1, ...
     where below `limit` (limit 0 only counts)."""
@@ -311,7 +341,7 @@ def may_show(view: View, m: Moving, z_static: float) -> bool:
 def moving_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, tile: int, sx: float, sy: float,
                      o: wp.vec3, d: wp.vec3, z_static: float, n_shade_max: int, lights_static: int, limit: int,
                      base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
-                     iv_rgb: wp.array(dtype=wp.vec3), fallbacks: wp.array(dtype=int)) -> int:
+                     iv_rgb: wp.array(dtype=RadiancePair), fallbacks: wp.array(dtype=int)) -> int:
     """Count, and store below `limit`, the intervals of the moving entries at a sample, skipping
     those entirely behind the nearest static surface (depth z_static)."""
     n = int(0)
@@ -373,17 +403,26 @@ def static_color(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: 
     if e < 0:
         return wp.vec4(sh.dome[0], sh.dome[1], sh.dome[2], 0.0)
     m = entry_moving(geo, e)
-    n = piece_count(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max, static_constant(geo, sh, e, lights_static))
+    n, linear, la, lm, lb = piece_plan(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max,
+                                       static_constant(geo, sh, e, lights_static))
     color = wp.vec3(0.0, 0.0, 0.0)
     covered = float(0.0)
+    r0 = la
     for i in range(n):
         s0 = float(i) / float(n)
         s1 = float(i + 1) / float(n)
         w = s1 - s0
+        t_mean = 0.5 * (s0 + s1)
         if bits > 0:
             slots = span_slots(s0, s1, bits)
             w = float(slots[1] - slots[0]) / float(bits)
-        color = color + piece_radiance(view, geo, sh, e, m, o, d, s0, s1) * w
+            t_mean = 0.5 * float(slots[0] + slots[1]) / float(bits)
+        if linear != 0:
+            r1 = piece_end_radiance(view, geo, sh, e, m, o, d, s1, i, n, lm, lb)
+            color = color + radiance_at(radiance_pair(r0, r1), wp.vec2(s0, s1), t_mean) * w
+            r0 = r1
+        else:
+            color = color + piece_radiance(view, geo, sh, e, m, o, d, s0, s1) * w
         covered = covered + w
     if bits > 0:
         color = color + sh.dome * (1.0 - covered)
@@ -421,7 +460,7 @@ def fill_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, su
                    static_hit: wp.array(dtype=int),
                    # outputs
                    counts: wp.array(dtype=int), fallbacks: wp.array(dtype=int), iv_t: wp.array(dtype=wp.vec2),
-                   iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=wp.vec3)):
+                   iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=RadiancePair)):
     """Listed sample k = first + tid (pixel pixels[k]): counts[k] = its number of intervals (the
     moving entries' first, then its nearest static entry's), stored from spans[k][0] on in the
     chunk's arrays as far as they fit below spans[k][1]. One pass computes and stores; a sample

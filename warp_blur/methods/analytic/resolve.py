@@ -4,7 +4,8 @@ Bitmask mode (time_bits B > 0): time slot j stands for the instant (j + 0.5)/B o
 so the result equals accumulation with B instants, without noise. Intervals are sorted by their
 nearest depth; for each interval I in that order, the slots where a *later* interval J is in
 front of I (their depth lines cross inside the common span: the crossing time splits the span)
-are "stolen" from I. I contributes popcount(bits(I) & ~covered & ~stolen)/B × its radiance and
+are "stolen" from I. I contributes popcount(bits(I) & ~covered & ~stolen)/B × its radiance (linear in time: taken at
+the mean time of those slots) and
 marks bits(I) & ~stolen covered; the loop stops when every slot is covered. The background
 fills the uncovered slots; alpha is the covered share.
 
@@ -22,12 +23,40 @@ from ...kernel_types import View
 WORD_ALL = wp.constant(wp.uint32(0xFFFFFFFF))
 
 
+# An interval's radiance at its start (0:3) and end (3:6); linear in time between.
+RadiancePair = wp.types.vector(length=6, dtype=wp.float32)
+
+
+@wp.func
+def radiance_pair(start: wp.vec3, end: wp.vec3) -> RadiancePair:
+    return RadiancePair(start[0], start[1], start[2], end[0], end[1], end[2])
+
+
+@wp.func
+def radiance_at(c: RadiancePair, t: wp.vec2, time: float) -> wp.vec3:
+    """Radiance of an interval spanning shutter times t at `time` (linear between its ends)."""
+    r0 = wp.vec3(c[0], c[1], c[2])
+    r1 = wp.vec3(c[3], c[4], c[5])
+    f = float(0.5)
+    if t[1] > t[0]:
+        f = wp.clamp((time - t[0]) / (t[1] - t[0]), 0.0, 1.0)
+    return r0 + (r1 - r0) * f
+
+
 @wp.func
 def popcount(x: wp.uint32) -> int:
     v = x - ((x >> wp.uint32(1)) & wp.uint32(0x55555555))
     v = (v & wp.uint32(0x33333333)) + ((v >> wp.uint32(2)) & wp.uint32(0x33333333))
     v = (v + (v >> wp.uint32(4))) & wp.uint32(0x0F0F0F0F)
     return int((v * wp.uint32(0x01010101)) >> wp.uint32(24))
+
+
+@wp.func
+def bit_index_sum(x: wp.uint32) -> int:
+    """Sum of the indices (0..31) of the set bits of x."""
+    return (popcount(x & wp.uint32(0xAAAAAAAA)) + 2 * popcount(x & wp.uint32(0xCCCCCCCC))
+            + 4 * popcount(x & wp.uint32(0xF0F0F0F0)) + 8 * popcount(x & wp.uint32(0xFF00FF00))
+            + 16 * popcount(x & wp.uint32(0xFFFF0000)))
 
 
 @wp.func
@@ -78,7 +107,7 @@ def sort_by_near_depth(order: wp.array(dtype=int), iv_z: wp.array(dtype=wp.vec2)
 @wp.kernel(enable_backward=False)
 def resolve_bitmask(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
                     iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
-                    iv_rgb: wp.array(dtype=wp.vec3), bits: int, weight: float, first: int, band_first: int,
+                    iv_rgb: wp.array(dtype=RadiancePair), bits: int, weight: float, first: int, band_first: int,
                     # outputs
                     order: wp.array(dtype=int), masks: wp.array2d(dtype=wp.uint32), rgba: wp.array2d(dtype=float)):
     """rgba[pixels[k]] += weight × the resolved colour of listed sample k = first + tid (intervals
@@ -134,13 +163,19 @@ def resolve_bitmask(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), span
                                 masks[row, words + w] = masks[row, words + w] | word_mask(sj[0], sj[1], w)
                     jj += 1
                 visible = int(0)
+                index_sum = int(0)
                 for w in range(w0, w1):
                     mine = word_mask(si[0], si[1], w) & ~masks[row, words + w]
                     new = mine & ~masks[row, w]
-                    visible += popcount(new)
+                    count = popcount(new)
+                    visible += count
+                    index_sum += bit_index_sum(new) + 32 * w * count
                     masks[row, w] = masks[row, w] | mine
                 covered += visible
-                color = color + iv_rgb[i] * (float(visible) / float(bits))
+                if visible > 0:
+                    # radiance is linear in time: its visible slots sum to count × value at their mean time
+                    t_mean = (float(index_sum) / float(visible) + 0.5) / float(bits)
+                    color = color + radiance_at(iv_rgb[i], ti, t_mean) * (float(visible) / float(bits))
     color = color + dome * (float(bits - covered) / float(bits))
     rgba[pix, 0] = rgba[pix, 0] + weight * color[0]
     rgba[pix, 1] = rgba[pix, 1] + weight * color[1]
@@ -151,7 +186,7 @@ def resolve_bitmask(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), span
 @wp.kernel(enable_backward=False)
 def resolve_exact(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
                   iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
-                  iv_rgb: wp.array(dtype=wp.vec3), weight: float, first: int, max_events: int,
+                  iv_rgb: wp.array(dtype=RadiancePair), weight: float, first: int, max_events: int,
                   # outputs
                   truncated: wp.array(dtype=int), rgba: wp.array2d(dtype=float)):
     """rgba[pixels[k]] += weight × the exact time average of listed sample k = first + tid
@@ -204,7 +239,7 @@ def resolve_exact(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), spans:
             nxt = wp.min(tau + 1.0e-7, 1.0)
         span = nxt - tau
         if front >= 0:
-            color = color + iv_rgb[front] * span
+            color = color + radiance_at(iv_rgb[front], iv_t[front], tau + 0.5 * span) * span
             cover = cover + span
         else:
             color = color + dome * span
@@ -214,7 +249,7 @@ def resolve_exact(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), spans:
             # keep the front surface for the rest (counted: never silent)
             wp.atomic_add(truncated, 0, 1)
             if front >= 0:
-                color = color + iv_rgb[front] * (1.0 - tau)
+                color = color + radiance_at(iv_rgb[front], iv_t[front], tau) * (1.0 - tau)
                 cover = cover + (1.0 - tau)
             else:
                 color = color + dome * (1.0 - tau)
