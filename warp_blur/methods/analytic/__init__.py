@@ -48,11 +48,11 @@ class _IntervalPass:
     each chunk's room), and keep the interval statistics."""
 
     def __init__(self, ctx: FrameContext, view, geo, sh, moving_bins, sub: wp.vec2, n_shade: int,
-                 lights_static: int, static_hit: wp.array, rgba: wp.array, weight: float,
+                 lights_static: int, static_hit: wp.array, listed: wp.array, rgba: wp.array, weight: float,
                  fallbacks: wp.array, truncated: wp.array) -> None:
         self.ctx, self.view, self.geo, self.sh, self.moving_bins = ctx, view, geo, sh, moving_bins
         self.sub, self.n_shade, self.lights_static = sub, n_shade, lights_static
-        self.static_hit, self.rgba, self.weight = static_hit, rgba, weight
+        self.static_hit, self.listed, self.rgba, self.weight = static_hit, listed, rgba, weight
         self.fallbacks, self.truncated = fallbacks, truncated
         self.scratch = wp.zeros(1, dtype=int, device=ctx.device)
         self.total, self.max, self.peak_bytes, self.chunks, self.refilled = 0, 0, 0, 0, 0
@@ -72,7 +72,7 @@ class _IntervalPass:
         with ctx.timed("fill"):
             launch_pixels(fill_intervals, len(pixels_np),
                           lambda first, _n: [self.view, self.geo, self.sh, self.moving_bins, self.sub, self.n_shade,
-                                             self.lights_static, pixels, first, spans, self.static_hit, counts,
+                                             self.lights_static, pixels, first, spans, self.static_hit, self.listed, counts,
                                              fallbacks, *arrays], dev, ctx.settings.threads)
         return counts.numpy(), arrays
 
@@ -153,7 +153,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
         pixels_np = np.nonzero(listed.numpy())[0].astype(np.int32)
         listed_total += len(pixels_np)
         interval_pass = _IntervalPass(ctx, view, geo, sh, moving_bins, sub_v, n_shade, lights_static, static_hit,
-                                      rgba, weight, fallbacks, truncated)
+                                      listed, rgba, weight, fallbacks, truncated)
         interval_pass.run(pixels_np, budget)
         passes.append(interval_pass)
     samples_total = max(num_px * len(subs), 1)

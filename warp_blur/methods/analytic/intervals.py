@@ -338,14 +338,15 @@ def may_show(view: View, m: Moving, z_static: float) -> bool:
 
 
 @wp.func
-def moving_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, tile: int, sx: float, sy: float,
-                     o: wp.vec3, d: wp.vec3, z_static: float, n_shade_max: int, lights_static: int, limit: int,
+def moving_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, tile: int, start: int, sx: float,
+                     sy: float, o: wp.vec3, d: wp.vec3, z_static: float, n_shade_max: int, lights_static: int, limit: int,
                      base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
                      iv_rgb: wp.array(dtype=RadiancePair), fallbacks: wp.array(dtype=int)) -> int:
-    """Count, and store below `limit`, the intervals of the moving entries at a sample, skipping
-    those entirely behind the nearest static surface (depth z_static)."""
+    """Count, and store below `limit`, the intervals of the moving entries at a sample, from the
+    tile's list position `start` on (first_reaching found none before it), skipping those
+    entirely behind the nearest static surface (depth z_static)."""
     n = int(0)
-    for i in range(moving_bins.tile_offsets[tile], moving_bins.tile_offsets[tile + 1]):
+    for i in range(start, moving_bins.tile_offsets[tile + 1]):
         e = moving_bins.tile_entries[i]
         if not box_rejects(moving_bins, e, sx, sy):
             if may_show(view, entry_moving(geo, e), z_static):
@@ -381,17 +382,17 @@ def entry_reaches(view: View, geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> 
 
 
 @wp.func
-def moving_reaches(view: View, geo: Geometry, moving_bins: Bins, tile: int, sx: float, sy: float, o: wp.vec3,
-                   d: wp.vec3, z_static: float) -> bool:
-    """True when some moving entry may have an interval at the sample (moving_intervals > 0 is
-    then possible; False guarantees it is 0), without shading anything."""
+def first_reaching(view: View, geo: Geometry, moving_bins: Bins, tile: int, sx: float, sy: float, o: wp.vec3,
+                   d: wp.vec3, z_static: float) -> int:
+    """The tile-list position of the first moving entry that may have an interval at the sample,
+    or -1 when none can (moving_intervals is then 0), without shading anything."""
     for i in range(moving_bins.tile_offsets[tile], moving_bins.tile_offsets[tile + 1]):
         e = moving_bins.tile_entries[i]
         if not box_rejects(moving_bins, e, sx, sy):
             if may_show(view, entry_moving(geo, e), z_static):
                 if entry_reaches(view, geo, e, o, d):
-                    return True
-    return False
+                    return i
+    return -1
 
 
 @wp.func
@@ -436,7 +437,8 @@ def classify_samples(view: View, geo: Geometry, sh: Shading, static_bins: Bins, 
                      listed: wp.array(dtype=int), static_hit: wp.array(dtype=int), rgba: wp.array2d(dtype=float)):
     """static_hit[pix] = the sample's nearest static entry (or -1), reused by the fill pass. With
     direct = 1, a sample no moving entry reaches is resolved here (rgba += weight × its colour,
-    listed 0): static pixels cost what a sharp render costs. Other samples get listed 1."""
+    listed 0): static pixels cost what a sharp render costs. Other samples get listed = 1 + the
+    tile-list position the fill pass starts from (the entries before it have no interval there)."""
     pix = first_pixel + wp.tid()
     px = pix % view.width
     py = pix // view.width
@@ -446,18 +448,21 @@ def classify_samples(view: View, geo: Geometry, sh: Shading, static_bins: Bins, 
     tile = pixel_tile(view, px, py)
     e_static, z_static = nearest_static(view, geo, static_bins, tile, sx, sy, o, d)
     static_hit[pix] = e_static
-    if direct != 0 and not moving_reaches(view, geo, moving_bins, tile, sx, sy, o, d, z_static):
+    first = first_reaching(view, geo, moving_bins, tile, sx, sy, o, d, z_static)
+    if first < 0 and direct != 0:
         c = static_color(view, geo, sh, e_static, o, d, n_shade_max, lights_static, bits)
         add_pixel(rgba, pix, weight, wp.vec3(c[0], c[1], c[2]), c[3])
         listed[pix] = 0
+    elif first < 0:
+        listed[pix] = 1 + moving_bins.tile_offsets[tile + 1]
     else:
-        listed[pix] = 1
+        listed[pix] = 1 + first
 
 
 @wp.kernel(enable_backward=False)
 def fill_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, sub: wp.vec2, n_shade_max: int,
                    lights_static: int, pixels: wp.array(dtype=int), first: int, spans: wp.array(dtype=wp.vec2i),
-                   static_hit: wp.array(dtype=int),
+                   static_hit: wp.array(dtype=int), listed: wp.array(dtype=int),
                    # outputs
                    counts: wp.array(dtype=int), fallbacks: wp.array(dtype=int), iv_t: wp.array(dtype=wp.vec2),
                    iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=RadiancePair)):
@@ -478,8 +483,8 @@ def fill_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, su
     z_static = float(wp.inf)
     if e_static >= 0:
         z_static = static_entry_hit(geo, e_static, o, d)[1]
-    n = moving_intervals(view, geo, sh, moving_bins, pixel_tile(view, px, py), sx, sy, o, d, z_static, n_shade_max,
-                         lights_static, limit, base, iv_t, iv_z, iv_rgb, fallbacks)
+    n = moving_intervals(view, geo, sh, moving_bins, pixel_tile(view, px, py), listed[pix] - 1, sx, sy, o, d, z_static,
+                         n_shade_max, lights_static, limit, base, iv_t, iv_z, iv_rgb, fallbacks)
     if e_static >= 0:
         n += entry_intervals(view, geo, sh, e_static, o, d, n_shade_max, lights_static, limit, base + n, iv_t, iv_z,
                              iv_rgb, fallbacks)
