@@ -35,15 +35,18 @@ def entry_pixel_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np
                        entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray,
                        margin: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Pixel bounding boxes (E, 4) float64 [x0, y0, x1, y1] and a keep mask (E,) of entries."""
-    vi = tri_vertices[entry_tri]                                        # (E, 3)
-    pts = np.concatenate([positions[entry_k0[:, None], vi], positions[entry_k1[:, None], vi]], axis=1)
-    depth = -pts[..., 2].astype(np.float64)                             # (E, 6)
-    keep = ~((depth > proj.far).all(axis=1) | (depth < proj.near).all(axis=1))
-    crosses = (depth < proj.near).any(axis=1) & (not proj.orthographic)
+    # vertex-major (6, E, ...) so the reductions over an entry's six points run along the first
+    # axis (contiguous rows, ~40x faster than reducing a short middle axis)
+    vi_t = tri_vertices[entry_tri].T                                    # (3, E)
+    pts = np.concatenate([positions[entry_k0[None, :], vi_t], positions[entry_k1[None, :], vi_t]], axis=0)
+    depth = -pts[..., 2].astype(np.float64)                             # (6, E)
+    keep = ~((depth > proj.far).all(axis=0) | (depth < proj.near).all(axis=0))
+    crosses = (depth < proj.near).any(axis=0) & (not proj.orthographic)
     with np.errstate(divide="ignore", invalid="ignore"):
-        r = proj.project(pts)
-    lo = np.nanmin(r, axis=1) - margin
-    hi = np.nanmax(r, axis=1) + margin
+        r = proj.project(pts)                                           # (6, E, 2)
+    # a NaN (0/0 at depth 0) only comes from an entry crossing the near plane: full box below
+    lo = r.min(axis=0) - margin
+    hi = r.max(axis=0) + margin
     box = np.concatenate([lo, hi], axis=1)
     box[crosses] = (-margin, -margin, proj.width + margin, proj.height + margin)
     finite = np.isfinite(box).all(axis=1)

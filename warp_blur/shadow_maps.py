@@ -39,7 +39,7 @@ from .lights import DISK, DISTANT, RECT, SPHERE
 from .log import warn_once
 from .parallel import launch_pixels
 from .shadow_lookup import FACE_WIDTH
-from .shadow_raster import render_shadow_texels, warp_texels
+from .shadow_raster import render_shadow_texels, splat_shadow_depth, warp_texels
 
 FAR = 1.0e30
 #: cells whose key depths differ by more than this many cell widths are cut (depth discontinuity)
@@ -433,15 +433,25 @@ class ShadowMaps:
                 self._count("shadow_maps_still_base", 1)
             depth = self._bases[key]
             if not still.all():
-                moving = self._render_face(lay, face, m, target, ~still)[0].numpy().reshape(s, s)
-                depth = np.minimum(depth, moving)
+                depth = self._render_over(lay, face, m, target, ~still, depth)
         self._add_time("shadow_render", time.perf_counter() - t0)
         self._count("shadow_maps_rendered", 1)
         return depth
 
-    def _render_face(self, lay: LightLayout, face: Face, m: int, s: Sample, subset: np.ndarray | None = None):
-        """Depth (S*S,), triangle (S*S,) and barycentrics (S*S, 2) of one face, rendered from the
-        visible triangles (of `subset`, a (T,) mask, when given)."""
+    def _render_over(self, lay: LightLayout, face: Face, m: int, s: Sample, subset: np.ndarray,
+                     base: np.ndarray) -> np.ndarray:
+        """Depth (S, S) of the visible triangles of `subset` ((T,) mask) rendered over `base` (the
+        nearer wins), each triangle splatted over its own box (atomic min: order-free)."""
+        view, geo, bins, b = self._face_scene(lay, face, m, s, subset)
+        entries = wp.array(np.unique(bins.tile_entries).astype(np.int32), dtype=int, device=self.device)
+        depth = wp.array(base.ravel(), dtype=float, device=self.device)
+        launch_pixels(splat_shadow_depth, entries.shape[0],
+                      lambda first, _n: [view, geo, b, entries, first, depth], self.device, self.threads)
+        return depth.numpy().reshape(self.size, self.size)
+
+    def _face_scene(self, lay: LightLayout, face: Face, m: int, s: Sample, subset: np.ndarray | None):
+        """(view, geometry, tile bins on the host, device bins) of one face seen from light sample
+        m at sample s, with the visible triangles (of `subset`, a (T,) mask, when given)."""
         a, t = self._face_transform(lay, face, m, s)
         q = s.positions @ a.T + t
         proj = face.projection(self.size)
@@ -455,7 +465,12 @@ class ShadowMaps:
         geo = make_geometry(self.tables, q[None], None, tris, k, k)
         view = make_view(proj, 1, bins, TILE_SIZE)
         view.near = face.near
-        b = make_bins(bins, self.device)
+        return view, geo, bins, make_bins(bins, self.device)
+
+    def _render_face(self, lay: LightLayout, face: Face, m: int, s: Sample, subset: np.ndarray | None = None):
+        """Depth (S*S,), triangle (S*S,) and barycentrics (S*S, 2) of one face, rendered from the
+        visible triangles (of `subset`, a (T,) mask, when given)."""
+        view, geo, _bins, b = self._face_scene(lay, face, m, s, subset)
         n = self.size * self.size
         depth = wp.empty(n, dtype=float, device=self.device)
         tri = wp.empty(n, dtype=int, device=self.device)

@@ -8,7 +8,8 @@ from __future__ import annotations
 import warp as wp
 
 from .kernel_types import Bins, Geometry, View
-from .raster import centre_ray, nearest_at_centre
+from .raster import box_rejects, centre_ray, nearest_at_centre
+from .rays import entry_vertex, intersect_triangle
 
 
 @wp.kernel(enable_backward=False)
@@ -29,6 +30,32 @@ def render_shadow_texels(view: View, geo: Geometry, bins: Bins, first_pixel: int
         depth[pix] = hit[1]
         tri[pix] = geo.entry_tri[e]
         bary[pix] = wp.vec2(hit[2], hit[3])
+
+
+@wp.kernel(enable_backward=False)
+def splat_shadow_depth(view: View, geo: Geometry, bins: Bins, entries: wp.array(dtype=int), first: int,
+                       # in/out
+                       depth: wp.array(dtype=float)):
+    """depth[texel] = min(depth[texel], entry's depth there) for entry entries[first + tid] over
+    the texel centres of its box (the pairs the texel walk of render_shadow_texels tests, with
+    the same hit test): few, small triangles over a base map cost their own area, not the map's."""
+    e = entries[first + wp.tid()]
+    box = bins.entry_boxes[e]
+    x0 = wp.max(int(wp.ceil(box[0] - 0.5)), 0)
+    x1 = wp.min(int(wp.floor(box[2] - 0.5)), view.width - 1)
+    y0 = wp.max(int(wp.ceil(box[1] - 0.5)), 0)
+    y1 = wp.min(int(wp.floor(box[3] - 0.5)), view.height - 1)
+    vi = geo.tri_vertices[geo.entry_tri[e]]
+    a = entry_vertex(geo, e, vi[0], 0.0)
+    b = entry_vertex(geo, e, vi[1], 0.0)
+    c = entry_vertex(geo, e, vi[2], 0.0)
+    for py in range(y0, y1 + 1):
+        for px in range(x0, x1 + 1):
+            if not box_rejects(bins, e, float(px) + 0.5, float(py) + 0.5):
+                o, d = centre_ray(view, py * view.width + px)
+                hit = intersect_triangle(o, d, a, b, c, vi)
+                if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
+                    wp.atomic_min(depth, py * view.width + px, hit[1])
 
 
 @wp.kernel(enable_backward=False)
