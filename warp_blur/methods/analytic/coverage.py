@@ -91,8 +91,15 @@ def edge_degenerate(coef: Any, d: Any, a0: Any, da: Any, b0: Any, db: Any, tol: 
     """1 when the edge function is zero up to rounding (tol × its scale) over the whole span: the
     ray lies in the plane of the edge and the eye at all times (e.g. a pixel on an edge whose
     plane holds the camera's whole dolly path)."""
-    scale = wp.length(d) * (wp.length(a0) + wp.length(da)) * (wp.length(b0 - a0) + wp.length(db - da))
     big = wp.max(wp.max(wp.abs(coef[0]), wp.abs(coef[1])), wp.abs(coef[2]))
+    # cheap first: (x + y)² <= 2 (x² + y²) bounds the squared scale without square roots
+    e0 = b0 - a0
+    de = db - da
+    two = type(tol)(2.0)
+    bound2 = wp.dot(d, d) * two * (wp.dot(a0, a0) + wp.dot(da, da)) * two * (wp.dot(e0, e0) + wp.dot(de, de))
+    if big * big > tol * tol * bound2:
+        return 0
+    scale = wp.length(d) * (wp.length(a0) + wp.length(da)) * (wp.length(e0) + wp.length(de))
     if big <= tol * scale:
         return 1
     return 0
