@@ -114,6 +114,7 @@ class Scene:
         self.materials = MaterialTable(frame)
         self.units: list[GeomUnit] = []
         self._xf_caches: dict[float, UsdGeom.XformCache] = {}
+        self._last_normals: tuple[np.ndarray, np.ndarray] | None = None   # (positions, their normals)
         self._collect()
         self.light_prims, dome = find_lights(stage)
         self.dome = dome_radiance(dome, frame)
@@ -406,6 +407,17 @@ class Scene:
         cam_to_world = np.array(self._xf_cache(time).GetLocalToWorldTransform(self.camera.GetPrim()), np.float64)
         return np.linalg.inv(cam_to_world)
 
+    def vertex_normals(self, positions: np.ndarray) -> np.ndarray:
+        """vertex_normals(positions, tri_vertices) (V, 3) float32; around the vertices that moved
+        since the previous call only (the rest of a mostly still scene keeps its normals)."""
+        last = self._last_normals
+        if last is not None and last[0].shape == positions.shape:
+            normals = vertex_normals_since(last[1], last[0], positions, self.tri_vertices)
+        else:
+            normals = vertex_normals(positions, self.tri_vertices)
+        self._last_normals = (positions.copy(), normals)
+        return normals
+
     def snapshot(self, time: float, with_normals: bool = True) -> Snapshot:
         """The scene at USD time `time` (within the shutter), in camera space (without vertex
         normals when with_normals is False: a probe that only compares positions)."""
@@ -425,7 +437,7 @@ class Scene:
             bad = next(u.path for ui, u in enumerate(self.units)
                        if not np.isfinite(positions[self.unit_vertex_offsets[ui]:self.unit_vertex_offsets[ui] + u.num_points * u.num_instances]).all())
             raise InvalidGeometryError(bad, f"non-finite transformed points at time {time}")
-        normals = (vertex_normals(positions, self.tri_vertices) if self.any_smooth and with_normals
+        normals = (self.vertex_normals(positions) if self.any_smooth and with_normals
                    else np.zeros((0, 3), np.float32))
         if self.headlight:
             lights = headlight_table()
@@ -445,6 +457,23 @@ def vertex_normals(positions: np.ndarray, tris: np.ndarray) -> np.ndarray:
                   for k in range(3)], axis=1)
     length = np.linalg.norm(n, axis=1, keepdims=True)
     return (n / np.maximum(length, 1e-30)).astype(np.float32)
+
+
+def vertex_normals_since(normals: np.ndarray, before: np.ndarray, positions: np.ndarray,
+                         tris: np.ndarray) -> np.ndarray:
+    """vertex_normals(positions, tris) given `normals` of the same mesh at positions `before`:
+    only vertices sharing a triangle with a moved vertex are recomputed, from all their triangles
+    in the same order, so the result is bit-identical to recomputing everything."""
+    moved = (positions != before).any(axis=1)
+    if not moved.any():
+        return normals
+    affected = np.zeros(len(positions), bool)
+    affected[tris[moved[tris].any(axis=1)].ravel()] = True
+    sub = tris[affected[tris].any(axis=1)]           # every triangle around an affected vertex
+    fresh = vertex_normals(positions, sub)
+    out = normals.copy()
+    out[affected] = fresh[affected]
+    return out
 
 
 def _is_light(prim: Usd.Prim) -> bool:
