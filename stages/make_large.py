@@ -17,8 +17,9 @@ from pxr import Gf, UsdGeom, Vt  # noqa: E402
 OUT = os.path.join(os.path.dirname(__file__), "..", "usd_scenes", "large.usda")
 
 
-def main(path: str = OUT, count: int = 870, moving_fraction: float = 1.0) -> str:
-    """moving_fraction < 1 keeps that share of the rocks moving and the rest still (bench variants)."""
+def main(path: str = OUT, count: int = 870, moving_fraction: float = 1.0, speed: float = 1.0) -> str:
+    """moving_fraction < 1 keeps that share of the rocks moving and the rest still; speed scales the
+    moving rocks' velocities and spins (bench variants)."""
     stage = new_stage(path, start=1, end=3, doc="warp_blur large: ~70k moving triangles for benchmarks (1024x768).")
     add_camera(stage, translate=(0, 6, 26), rotate_axis="X", rotate_samples={1: -12.0}, shutter=(-0.5, 0.5))
     add_dome(stage, color=(0.08, 0.09, 0.12))
@@ -41,6 +42,8 @@ def main(path: str = OUT, count: int = 870, moving_fraction: float = 1.0) -> str
     still = np.arange(count) >= int(round(moving_fraction * count))
     vel[still] = 0.0
     ang[still] = 0.0
+    vel *= speed
+    ang *= speed
     inst.CreateProtoIndicesAttr(Vt.IntArray([0] * count))
     inst.CreatePositionsAttr().Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, p)) for p in pos]), 2.0)
     inst.CreateVelocitiesAttr().Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, v)) for v in vel]), 2.0)

@@ -72,6 +72,12 @@ def depth_at(m: Moving, o: wp.vec3, d: wp.vec3, s: float) -> float:
 
 
 @wp.func
+def eye_relative(m: Moving, o: wp.vec3):
+    """The triangle's vertices at the span's start relative to the ray origin, and their changes."""
+    return m.a0 - o, m.b0 - o, m.c0 - o, m.a1 - m.a0, m.b1 - m.b0, m.c1 - m.c0
+
+
+@wp.func
 def in_range(view: View, z: float) -> bool:
     return z >= view.near and z <= view.far
 
@@ -274,12 +280,7 @@ def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, 
             return 0
         return emit_pieces(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max, static_constant(geo, sh, e, lights_static),
                            limit, base, iv_t, iv_z, iv_rgb)
-    a0 = m.a0 - o
-    b0 = m.b0 - o
-    c0 = m.c0 - o
-    da = m.a1 - m.a0
-    db = m.b1 - m.b0
-    dc = m.c1 - m.c0
+    a0, b0, c0, da, db, dc = eye_relative(m, o)
     ca, cb, cc, ra, rb, rc, dga, dgb, dgc = prism_edges(d, a0, da, b0, db, c0, dc, vi, DEGENERATE_TOL_F32)
     # may the view depth leave [near, far]? (the hit is a convex combination of the vertices)
     zmin = wp.min(wp.min(wp.min(-m.a0[2], -m.b0[2]), wp.min(-m.c0[2], -m.a1[2])), wp.min(-m.b1[2], -m.c1[2]))
@@ -364,12 +365,7 @@ def entry_reaches(view: View, geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> 
     if geo.entry_k0[e] == geo.entry_k1[e]:
         hit = intersect_triangle(o, d, m.a0, m.b0, m.c0, vi)
         return hit[0] != 0.0 and in_range(view, hit[1])
-    a0 = m.a0 - o
-    b0 = m.b0 - o
-    c0 = m.c0 - o
-    da = m.a1 - m.a0
-    db = m.b1 - m.b0
-    dc = m.c1 - m.c0
+    a0, b0, c0, da, db, dc = eye_relative(m, o)
     ca, cb, cc, ra, rb, rc, dga, dgb, dgc = prism_edges(d, a0, da, b0, db, c0, dc, vi, DEGENERATE_TOL_F32)
     s_prev = float(0.0)
     for _step in range(MAX_SPAN_PIECES):
