@@ -187,6 +187,24 @@ def test_samples_filled_again_with_more_room_give_the_same_image(scene_path, mon
     np.testing.assert_array_equal(tight.rgba, roomy.rgba)
 
 
+def test_room_set_by_a_pilot_gives_the_same_image(scene_path, monkeypatch):
+    """Many listed samples: a strided pilot fills first and sets the room for the rest from what
+    its samples needed. Room only decides how often a sample is filled again, never the image."""
+    import warp_blur.methods.analytic as analytic
+    path = moving_layers_stage(scene_path(), 8, cross=True)
+    kw = dict(frame=1, resolution=(64, 48), method="analytic", aovs=())
+    single = wb.render(path, **kw)
+    monkeypatch.setattr(analytic, "PILOT_MIN", 16)
+    monkeypatch.setattr(analytic, "PILOT_STRIDE", 4)
+    monkeypatch.setattr(analytic, "FIRST_FILL_ROOM", 3)
+    piloted = wb.render(path, **kw)
+    assert single.stats["interval_room"] == 64 and single.stats["pixels_refilled"] == 0.0
+    assert 3 < piloted.stats["interval_room"] <= 8 * math.ceil(piloted.stats["intervals_per_pixel_max"] / 8)
+    assert 0.0 < piloted.stats["pixels_refilled"] < single.stats["pixels_with_motion"]
+    assert piloted.stats["intervals"] == single.stats["intervals"]
+    np.testing.assert_array_equal(piloted.rgba, single.rgba)
+
+
 def test_results_do_not_depend_on_threads(scene_path):
     path = two_quads_stage(scene_path())
     a = wb.render(path, frame=1, resolution=RES, method="analytic", aovs=(), threads=1)

@@ -22,9 +22,13 @@ from .segments import prepare_motion
 
 BYTES_PER_INTERVAL = 8 + 8 + 24 + 4  # times, depths, radiance at both ends, sort index
 MAX_EXACT_EVENTS = 1 << 16
-# Intervals of room per listed sample in the first fill: most samples need fewer (the large
-# scene's moving pixels average ~40); those that need more are filled again with exact room.
+# Intervals of room per listed sample in the first fill (and the pilot's); a sample that needs
+# more is filled again with exact room. With at least PILOT_MIN listed samples, every
+# PILOT_STRIDE-th goes first and sets the room of the rest (up to MAX_FILL_ROOM).
 FIRST_FILL_ROOM = 64
+PILOT_MIN = 4096
+PILOT_STRIDE = 16
+MAX_FILL_ROOM = 256
 # Samples that no moving entry reaches are resolved in the classify pass, with the resolve's own
 # weights (tests switch this off to compare against resolving stored intervals).
 DIRECT_STATIC_PIXELS = True
@@ -56,6 +60,7 @@ class _IntervalPass:
         self.fallbacks, self.truncated = fallbacks, truncated
         self.scratch = wp.zeros(1, dtype=int, device=ctx.device)
         self.total, self.max, self.peak_bytes, self.chunks, self.refilled = 0, 0, 0, 0, 0
+        self.room = FIRST_FILL_ROOM
 
     def fill(self, pixels_np: np.ndarray, spans_np: np.ndarray, count_fallbacks: bool):
         """Run the fill pass for samples pixels_np with (start, end) room spans_np: (counts, arrays)."""
@@ -101,13 +106,30 @@ class _IntervalPass:
                                                  first, MAX_EXACT_EVENTS, self.truncated, self.rgba], dev, s.threads)
 
     def run(self, pixels_np: np.ndarray, budget: int) -> None:
-        """Fill (FIRST_FILL_ROOM each) and resolve the listed samples; refill those that had more."""
-        room = max(1, min(FIRST_FILL_ROOM, budget))
+        """Fill and resolve the listed samples. Many samples: a strided pilot (every PILOT_STRIDE-th)
+        goes first with FIRST_FILL_ROOM each, and the room for the rest is what 99.5% of the pilot's
+        samples needed (rounded up to 8, at most MAX_FILL_ROOM): few refills, little memory."""
+        if len(pixels_np) < PILOT_MIN:
+            self._fill_resolve(pixels_np, budget, FIRST_FILL_ROOM)
+            return
+        pilot = np.zeros(len(pixels_np), bool)
+        pilot[::PILOT_STRIDE] = True
+        counts = self._fill_resolve(pixels_np[pilot], budget, FIRST_FILL_ROOM)
+        room = int(min(max(8 * np.ceil(np.percentile(counts, 99.5) / 8.0), 8), MAX_FILL_ROOM))
+        self.room = room
+        self._fill_resolve(pixels_np[~pilot], budget, room)
+
+    def _fill_resolve(self, pixels_np: np.ndarray, budget: int, room: int) -> np.ndarray:
+        """Fill with `room` intervals each, resolve, refill (exactly) those that had more; the
+        samples' interval counts."""
+        room = max(1, min(room, budget))
         per_chunk = max(1, budget // room)
+        all_counts = []
         for c0 in range(0, len(pixels_np), per_chunk):
             chunk = pixels_np[c0:c0 + per_chunk]
             starts = np.arange(len(chunk), dtype=np.int64) * room
             counts, arrays = self.fill(chunk, np.stack([starts, starts + room], axis=1).astype(np.int32), True)
+            all_counts.append(counts)
             self.total += int(counts.sum())
             self.max = max(self.max, int(counts.max()))
             fits = counts <= room
@@ -122,6 +144,7 @@ class _IntervalPass:
                 assert np.array_equal(refill_counts, over_counts[p0:p1]), "refill counted differently"
                 self.resolve(over[p0:p1], spans, arrays)
                 del arrays
+        return np.concatenate(all_counts) if all_counts else np.zeros(0, np.int32)
 
 
 def render_analytic(ctx: FrameContext) -> np.ndarray:
@@ -165,6 +188,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
         "intervals_per_pixel_max": max(p.max for p in passes), "interval_bytes_peak": max(p.peak_bytes for p in passes),
         "interval_chunks": sum(p.chunks for p in passes), "pixels_with_motion": listed_total / samples_total,
         "pixels_refilled": sum(p.refilled for p in passes) / samples_total,
+        "interval_room": max(p.room for p in passes),
         "near_far_fallbacks": int(fallbacks.numpy()[0]), "exact_truncations": int(truncated.numpy()[0]),
     })
     return rgba.numpy()
