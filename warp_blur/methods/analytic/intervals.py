@@ -94,7 +94,8 @@ def shade_at(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.ve
 @wp.func
 def piece_plan(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
                s_a: float, s_b: float, n_shade_max: int, constant_radiance: int):
-    """How [s_a, s_b] is stored: (pieces, linear, radiance at s_a, at the middle, at s_b).
+    """How [s_a, s_b] is stored: (pieces, linear, radiance at s_a, at the middle, at s_b, view
+    depth at s_a, at s_b).
 
     Pieces split where view depth is far from linear. With linear = 1 each piece carries the
     radiance at its two ends (the resolve interpolates in time) and pieces also split where the
@@ -123,7 +124,7 @@ def piece_plan(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.
         dev = max_component(wp.abs(lm - 0.5 * (la + lb))) * 4.0
         ns = int(wp.ceil(wp.sqrt(dev / SHADE_TOLERANCE)))
         n = wp.max(n, wp.clamp(ns, 1, n_shade_max))
-    return n, linear, la, lm, lb
+    return n, linear, la, lm, lb, z_a, z_b
 
 
 @wp.func
@@ -156,15 +157,16 @@ def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp
                 iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=RadiancePair)) -> int:
     """Store [s_a, s_b] (already known covered and within the clipping range) as intervals at
     base, base + 1, ... (those below `limit` only: limit 0 counts); returns how many it has."""
-    n, linear, la, lm, lb = piece_plan(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, constant_radiance)
+    n, linear, la, lm, lb, z_a, z_b = piece_plan(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max,
+                                                constant_radiance)
     if base < limit:
         du = m.u1 - m.u0
-        z_prev = depth_at(m, o, d, s_a)
+        z_prev = z_a
         r0 = la
         for i in range(wp.min(n, limit - base)):
             s0 = s_a + (s_b - s_a) * float(i) / float(n)
             s1 = s_a + (s_b - s_a) * float(i + 1) / float(n)
-            z1 = depth_at(m, o, d, s_b)
+            z1 = z_b
             if i + 1 < n:
                 z1 = depth_at(m, o, d, s1)
             iv_t[base + i] = wp.vec2(m.u0 + s0 * du, m.u0 + s1 * du)
@@ -400,8 +402,8 @@ def static_color(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: 
     if e < 0:
         return wp.vec4(sh.dome[0], sh.dome[1], sh.dome[2], 0.0)
     m = entry_moving(geo, e)
-    n, linear, la, lm, lb = piece_plan(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max,
-                                       static_constant(geo, sh, e, lights_static))
+    n, linear, la, lm, lb, _z_a, _z_b = piece_plan(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max,
+                                                   static_constant(geo, sh, e, lights_static))
     color = wp.vec3(0.0, 0.0, 0.0)
     covered = float(0.0)
     r0 = la
