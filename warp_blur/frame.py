@@ -24,7 +24,8 @@ from .stage import Shutter
 
 #: Shutter fractions probed to decide that nothing moves. Open, centre and close alone alias
 #: (a full turn per half shutter looks static); the irregular extra probes make that unlikely.
-MOTION_PROBES = (0.0, 0.1234, 0.25, 0.5, 0.6180, 0.75, 1.0)
+#: They lie on the motion planner's default grid (k/128), so it reuses these snapshots.
+MOTION_PROBES = (0.0, 16 / 128, 32 / 128, 64 / 128, 79 / 128, 96 / 128, 1.0)
 
 
 @dataclass
@@ -52,6 +53,7 @@ class FrameContext:
     aov_depth: np.ndarray | None = None
     _instant_shadows: ShadowMaps | None = None
     _shading_last: tuple | None = None   # (time, Shading) of the last instant shaded
+    probe_snapshots: dict = field(default_factory=dict)   # shutter fraction -> Snapshot (static_frame's)
     instants: int = 1   # sharp instants this frame will shade (accumulation sets it)
 
     @contextmanager
@@ -82,11 +84,11 @@ class FrameContext:
         and lights identical at open, centre and close), else None: such a frame is one sharp render."""
         if self.shutter.instant:
             return self.snapshot(0.5)
-        a = self.snapshot(0.5)
+        a = self.probe_snapshots[0.5] = self.snapshot(0.5)
         for u in MOTION_PROBES:
             if u == 0.5:
                 continue
-            b = self.snapshot(u, with_normals=False)
+            b = self.probe_snapshots[u] = self.snapshot(u, with_normals=False)
             if not (np.array_equal(a.positions, b.positions) and np.array_equal(a.tri_visible, b.tri_visible)
                     and np.array_equal(a.lights, b.lights)):
                 return None

@@ -18,6 +18,7 @@ import numpy as np
 from pxr import UsdGeom
 
 from ...camera import Projection
+from ...frame import MOTION_PROBES
 from ...log import warn_once
 from ...scene import Scene
 
@@ -87,28 +88,30 @@ def _hint(prim) -> int:
 
 
 def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int = 128,
-                error_px: float = 0.25, time_error: float = 0.001) -> MotionPlan:
+                error_px: float = 0.25, time_error: float = 0.001, known: dict | None = None) -> MotionPlan:
     """Choose segments per prim by bisection of the shutter. shutter_time(u) -> USD time.
 
     Snapshots are taken lazily: K segments are checked against the true positions at their
     quarter points (the knots of 4K), so a frame costs about 4·K_max + 1 snapshots (a few more
     probes decide which prims move at all; without the extra probes a prim turning a full circle
-    per half shutter would look still)."""
+    per half shutter would look still). `known` maps shutter fractions to snapshots already taken
+    (the static-frame probes), reused where a knot falls on one."""
     instant = shutter_time(0.0) == shutter_time(1.0)
     m = 2 if instant else max(max_segments, 2)
     snaps: dict = {}
 
     def snap(k: int):
         if k not in snaps:
-            snaps[k] = scene.snapshot(shutter_time(k / m), with_normals=False)   # normals: kept knots only
-        return snaps[k]
+            reuse = (known or {}).get(k / m)
+            snaps[k] = reuse if reuse is not None else scene.snapshot(shutter_time(k / m), with_normals=False)
+        return snaps[k]   # (normals: kept knots only, computed below)
 
     def pos(k: int, o: int, n: int) -> np.ndarray:
         return snap(k).positions[o:o + n]
 
     seg_of_unit = [0] * len(scene.units)
     pending: dict[int, np.ndarray] = {}
-    probes = sorted({0, m} | {int(round(u * m)) for u in (0.1234, 0.25, 0.5, 0.618, 0.75)}) if not instant else [0]
+    probes = sorted({int(round(u * m)) for u in MOTION_PROBES}) if not instant else [0]
     for ui, unit in enumerate(scene.units):
         o, n = scene.unit_vertex_offsets[ui], unit.num_points * unit.num_instances
         ps = [pos(k, o, n) for k in probes]
@@ -213,7 +216,7 @@ def prepare_motion(ctx):
     s = ctx.settings
     with ctx.timed("segments"):
         plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.segment_error_px,
-                           s.segment_time_error)
+                           s.segment_time_error, ctx.probe_snapshots)
     geo = make_geometry(ctx.tables, plan.positions, plan.normals, plan.entry_tri, plan.entry_k0, plan.entry_k1)
     static = plan.entry_k0 == plan.entry_k1
     tile_bins = ctx.bin_groups(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1, [static, ~static])
