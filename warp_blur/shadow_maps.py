@@ -32,7 +32,7 @@ from typing import Callable
 import numpy as np
 import warp as wp
 
-from .binning import TILE_SIZE, bin_entries, entry_pixel_bounds
+from .binning import TILE_SIZE, TileBins, bin_entries, entry_pixel_bounds
 from .camera import Projection
 from .device_data import TriangleTables, device_array, make_bins, make_geometry, make_view
 from .lights import DISK, DISTANT, RECT, SPHERE
@@ -442,16 +442,18 @@ class ShadowMaps:
                      base: np.ndarray) -> np.ndarray:
         """Depth (S, S) of the visible triangles of `subset` ((T,) mask) rendered over `base` (the
         nearer wins), each triangle splatted over its own box (atomic min: order-free)."""
-        view, geo, bins, b = self._face_scene(lay, face, m, s, subset)
-        entries = wp.array(np.unique(bins.tile_entries).astype(np.int32), dtype=int, device=self.device)
+        view, geo, b, kept = self._face_scene(lay, face, m, s, subset, tiles=False)
+        entries = wp.array(kept.astype(np.int32), dtype=int, device=self.device)
         depth = wp.array(base.ravel(), dtype=float, device=self.device)
-        launch_pixels(splat_shadow_depth, entries.shape[0],
+        launch_pixels(splat_shadow_depth, len(kept),
                       lambda first, _n: [view, geo, b, entries, first, depth], self.device, self.threads)
         return depth.numpy().reshape(self.size, self.size)
 
-    def _face_scene(self, lay: LightLayout, face: Face, m: int, s: Sample, subset: np.ndarray | None):
-        """(view, geometry, tile bins on the host, device bins) of one face seen from light sample
-        m at sample s, with the visible triangles (of `subset`, a (T,) mask, when given)."""
+    def _face_scene(self, lay: LightLayout, face: Face, m: int, s: Sample, subset: np.ndarray | None,
+                    tiles: bool = True):
+        """(view, geometry, device bins, kept entries (K,)) of one face seen from light sample m at
+        sample s, with the visible triangles (of `subset`, a (T,) mask, when given). With tiles
+        False the bins carry only the entries' boxes (enough for splatting)."""
         a, t = self._face_transform(lay, face, m, s)
         q = s.positions @ a.T + t
         proj = face.projection(self.size)
@@ -461,16 +463,19 @@ class ShadowMaps:
         tris = np.nonzero(visible)[0].astype(np.int32)
         k = np.zeros(len(tris), np.int32)
         boxes, keep = entry_pixel_bounds(proj, q[None], self.tri_vertices, tris, k, k, 1.0)
-        bins = bin_entries(proj, boxes, keep, TILE_SIZE)
+        if tiles:
+            bins = bin_entries(proj, boxes, keep, TILE_SIZE)
+        else:
+            bins = TileBins(np.zeros(1, np.int32), np.zeros(0, np.int32), 0, 0, np.asarray(boxes, np.float32))
         geo = make_geometry(self.tables, q[None], None, tris, k, k)
-        view = make_view(proj, 1, bins, TILE_SIZE)
+        view = make_view(proj, 1, bins if tiles else None, TILE_SIZE)
         view.near = face.near
-        return view, geo, bins, make_bins(bins, self.device)
+        return view, geo, make_bins(bins, self.device), np.nonzero(keep)[0]
 
     def _render_face(self, lay: LightLayout, face: Face, m: int, s: Sample, subset: np.ndarray | None = None):
         """Depth (S*S,), triangle (S*S,) and barycentrics (S*S, 2) of one face, rendered from the
         visible triangles (of `subset`, a (T,) mask, when given)."""
-        view, geo, _bins, b = self._face_scene(lay, face, m, s, subset)
+        view, geo, b, _kept = self._face_scene(lay, face, m, s, subset)
         n = self.size * self.size
         depth = wp.empty(n, dtype=float, device=self.device)
         tri = wp.empty(n, dtype=int, device=self.device)

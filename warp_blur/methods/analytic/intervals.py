@@ -72,6 +72,15 @@ def depth_at(m: Moving, o: wp.vec3, d: wp.vec3, s: float) -> float:
 
 
 @wp.func
+def depth_range(m: Moving) -> wp.vec2:
+    """(nearest, farthest) view depth of the triangle's six vertices: its hits over the span are
+    convex combinations of them."""
+    zmin = wp.min(wp.min(wp.min(-m.a0[2], -m.b0[2]), wp.min(-m.c0[2], -m.a1[2])), wp.min(-m.b1[2], -m.c1[2]))
+    zmax = wp.max(wp.max(wp.max(-m.a0[2], -m.b0[2]), wp.max(-m.c0[2], -m.a1[2])), wp.max(-m.b1[2], -m.c1[2]))
+    return wp.vec2(zmin, zmax)
+
+
+@wp.func
 def eye_relative(m: Moving, o: wp.vec3):
     """The triangle's vertices at the span's start relative to the ray origin, and their changes."""
     return m.a0 - o, m.b0 - o, m.c0 - o, m.a1 - m.a0, m.b1 - m.b0, m.c1 - m.c0
@@ -264,18 +273,15 @@ def entry_moving(geo: Geometry, e: int) -> Moving:
 
 
 @wp.func
-def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, n_shade_max: int,
-                    lights_static: int, limit: int, base: int, iv_t: wp.array(dtype=wp.vec2),
+def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
+                    n_shade_max: int, lights_static: int, limit: int, base: int, iv_t: wp.array(dtype=wp.vec2),
                     iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=RadiancePair),
                     fallbacks: wp.array(dtype=int)) -> int:
-    """The number of coverage intervals of entry e at a pixel ray, stored at base, base + 1, ...
-    where below `limit` (limit 0 only counts)."""
+    """The number of coverage intervals of entry e (its triangle m = entry_moving(geo, e)) at a
+    pixel ray, stored at base, base + 1, ... where below `limit` (limit 0 only counts)."""
     vi = geo.tri_vertices[geo.entry_tri[e]]
-    k0 = geo.entry_k0[e]
-    k1 = geo.entry_k1[e]
     emissive_only = entry_emissive_only(geo, sh, e)
-    m = entry_moving(geo, e)
-    if k0 == k1:
+    if geo.entry_k0[e] == geo.entry_k1[e]:
         # static entry: covered for the whole shutter or never
         hit = intersect_triangle(o, d, m.a0, m.b0, m.c0, vi)
         if hit[0] == 0.0 or not in_range(view, hit[1]):
@@ -285,10 +291,9 @@ def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, 
     a0, b0, c0, da, db, dc = eye_relative(m, o)
     ca, cb, cc, ra, rb, rc, dga, dgb, dgc = prism_edges(d, a0, da, b0, db, c0, dc, vi, DEGENERATE_TOL_F32)
     # may the view depth leave [near, far]? (the hit is a convex combination of the vertices)
-    zmin = wp.min(wp.min(wp.min(-m.a0[2], -m.b0[2]), wp.min(-m.c0[2], -m.a1[2])), wp.min(-m.b1[2], -m.c1[2]))
-    zmax = wp.max(wp.max(wp.max(-m.a0[2], -m.b0[2]), wp.max(-m.c0[2], -m.a1[2])), wp.max(-m.b1[2], -m.c1[2]))
+    z_range = depth_range(m)
     may_clip = int(0)
-    if zmin < view.near or zmax > view.far:
+    if z_range[0] < view.near or z_range[1] > view.far:
         may_clip = 1
     count = int(0)
     s_prev = float(0.0)
@@ -329,15 +334,9 @@ def nearest_static(view: View, geo: Geometry, static_bins: Bins, tile: int, sx: 
 
 
 @wp.func
-def moving_zmin(m: Moving) -> float:
-    """Nearest view depth of the entry's six vertices (its hits are convex combinations of them)."""
-    return wp.min(wp.min(wp.min(-m.a0[2], -m.b0[2]), wp.min(-m.c0[2], -m.a1[2])), wp.min(-m.b1[2], -m.c1[2]))
-
-
-@wp.func
 def may_show(view: View, m: Moving, z_static: float) -> bool:
     """False when the entry lies entirely behind the nearest static surface (depth z_static)."""
-    return view.ortho != 0 or moving_zmin(m) <= z_static
+    return view.ortho != 0 or depth_range(m)[0] <= z_static
 
 
 @wp.func
@@ -352,18 +351,18 @@ def moving_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, 
     for i in range(start, moving_bins.tile_offsets[tile + 1]):
         e = moving_bins.tile_entries[i]
         if not box_rejects(moving_bins, e, sx, sy):
-            if may_show(view, entry_moving(geo, e), z_static):
-                n += entry_intervals(view, geo, sh, e, o, d, n_shade_max, lights_static, limit, base + n, iv_t,
+            m = entry_moving(geo, e)
+            if may_show(view, m, z_static):
+                n += entry_intervals(view, geo, sh, e, m, o, d, n_shade_max, lights_static, limit, base + n, iv_t,
                                      iv_z, iv_rgb, fallbacks)
     return n
 
 
 @wp.func
-def entry_reaches(view: View, geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> bool:
-    """True when entry e covers the ray at some time of its span (a piece clipped away by the
-    near/far planes still counts: the answer may err only towards True)."""
+def entry_reaches(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3) -> bool:
+    """True when entry e (its triangle m) covers the ray at some time of its span (a piece clipped
+    away by the near/far planes still counts: the answer may err only towards True)."""
     vi = geo.tri_vertices[geo.entry_tri[e]]
-    m = entry_moving(geo, e)
     if geo.entry_k0[e] == geo.entry_k1[e]:
         hit = intersect_triangle(o, d, m.a0, m.b0, m.c0, vi)
         return hit[0] != 0.0 and in_range(view, hit[1])
@@ -387,8 +386,9 @@ def first_reaching(view: View, geo: Geometry, moving_bins: Bins, tile: int, sx: 
     for i in range(moving_bins.tile_offsets[tile], moving_bins.tile_offsets[tile + 1]):
         e = moving_bins.tile_entries[i]
         if not box_rejects(moving_bins, e, sx, sy):
-            if may_show(view, entry_moving(geo, e), z_static):
-                if entry_reaches(view, geo, e, o, d):
+            m = entry_moving(geo, e)
+            if may_show(view, m, z_static):
+                if entry_reaches(view, geo, e, m, o, d):
                     return i
     return -1
 
@@ -467,7 +467,7 @@ def fill_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, su
     """Listed sample k = first + tid (pixel pixels[k]): counts[k] = its number of intervals (the
     moving entries' first, then its nearest static entry's), stored from spans[k][0] on in the
     chunk's arrays as far as they fit below spans[k][1]. One pass computes and stores; a sample
-    whose count exceeds its span is filled again with room for all (see render_analytic)."""
+    whose count exceeds its span is filled again with room for all (see _IntervalPass)."""
     k = first + wp.tid()
     pix = pixels[k]
     base = spans[k][0]
@@ -484,6 +484,6 @@ def fill_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, su
     n = moving_intervals(view, geo, sh, moving_bins, pixel_tile(view, px, py), listed[pix] - 1, sx, sy, o, d, z_static,
                          n_shade_max, lights_static, limit, base, iv_t, iv_z, iv_rgb, fallbacks)
     if e_static >= 0:
-        n += entry_intervals(view, geo, sh, e_static, o, d, n_shade_max, lights_static, limit, base + n, iv_t, iv_z,
-                             iv_rgb, fallbacks)
+        n += entry_intervals(view, geo, sh, e_static, entry_moving(geo, e_static), o, d, n_shade_max, lights_static,
+                             limit, base + n, iv_t, iv_z, iv_rgb, fallbacks)
     counts[k] = n

@@ -4,10 +4,10 @@ Bitmask mode (time_bits B > 0): time slot j stands for the instant (j + 0.5)/B o
 so the result equals accumulation with B instants, without noise. Intervals are sorted by their
 nearest depth; for each interval I in that order, the slots where a *later* interval J is in
 front of I (their depth lines cross inside the common span: the crossing time splits the span)
-are "stolen" from I. I contributes popcount(bits(I) & ~covered & ~stolen)/B × its radiance (linear in time: taken at
-the mean time of those slots) and
-marks bits(I) & ~stolen covered; the loop stops when every slot is covered. The background
-fills the uncovered slots; alpha is the covered share.
+are "stolen" from I. I contributes popcount(bits(I) & ~covered & ~stolen)/B × its radiance
+(linear in time: taken at the mean time of those slots) and marks bits(I) & ~stolen covered; the
+loop stops when every slot is covered. The background fills the uncovered slots; alpha is the
+covered share.
 
 Exact mode (time_bits 0): a sweep over time keeps the covered time as exact spans: at each event
 (an interval starts or ends, or another interval crosses in front of the current front one) the
