@@ -205,6 +205,29 @@ def test_room_set_by_a_pilot_gives_the_same_image(scene_path, monkeypatch):
     np.testing.assert_array_equal(piloted.rgba, single.rgba)
 
 
+def test_hidden_intervals_are_not_shaded(scene_path):
+    """Eight opaque layers stacked in depth over the same pixels: the resolve shades only the
+    intervals it finds visible, so most of the stored ones (the layers behind) cost no shading,
+    and the image still matches accumulation."""
+    path = moving_layers_stage(scene_path(), 8)
+    out, ref = _pair(path, res=(32, 24))
+    assert out.stats["intervals_per_pixel_max"] >= 8
+    assert 0 < out.stats["intervals_shaded"] < 0.5 * out.stats["intervals"]
+    assert rmse(out.rgba, ref.rgba) <= 3e-3
+
+
+def test_counters_do_not_depend_on_threads(scene_path):
+    """Stats counted inside kernels (one counter per parallel band: CPU atomics are not atomic
+    across concurrent launches) are the same on one thread and on several."""
+    path = emissive_quad_stage(scene_path(), half=1.0, camera={"translate": (0, 0, 10), "clipping": (1.0, 100.0)},
+                               translate_samples={0.5: (0.3, 0.2, 5.0), 1.5: (0.3, 0.2, 10.5)})
+    kw = dict(frame=1, resolution=(48, 36), method="analytic", aovs=())
+    one = wb.render(path, threads=1, **kw)
+    many = wb.render(path, threads=3, **kw)
+    for key in ("near_far_fallbacks", "intervals_shaded", "intervals"):
+        assert one.stats[key] == many.stats[key] > 0, key
+
+
 def test_results_do_not_depend_on_threads(scene_path):
     path = two_quads_stage(scene_path())
     a = wb.render(path, frame=1, resolution=RES, method="analytic", aovs=(), threads=1)

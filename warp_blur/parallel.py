@@ -46,3 +46,43 @@ def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], d
         wp.launch(kernel, dim=count, inputs=inputs(first, count), device=device)
 
     list(_pool(threads).map(run, range(start, start + num_pixels, size)))
+
+
+def launch_row_bands(kernel, dim: int, rows: int, inputs: Callable[[int, int], list], device: str,
+                     threads: int | None = None, bands_per_thread: int = 2) -> None:
+    """Launch `kernel` with `dim` threads once per band of output rows [y0, y1) (inputs(y0, y1)
+    gives a band's inputs), the bands in parallel. For kernels that scatter into one output from
+    many threads: each launch writes only its own rows, so concurrent launches never touch the
+    same element (CPU atomics are not atomic across launches running in parallel)."""
+    if dim <= 0 or rows <= 0:
+        return
+    threads = threads or default_threads()
+    if device != "cpu" or threads == 1:
+        wp.launch(kernel, dim=dim, inputs=inputs(0, rows), device=device)
+        return
+    wp.load_module(kernel.module, device=device)
+    num_bands = min(rows, threads * bands_per_thread)
+    size = (rows + num_bands - 1) // num_bands
+
+    def run(y0: int) -> None:
+        wp.launch(kernel, dim=dim, inputs=inputs(y0, min(y0 + size, rows)), device=device)
+
+    list(_pool(threads).map(run, range(0, rows, size)))
+
+
+class BandCounter:
+    """A count that kernels launched in parallel bands add to without racing: each band gets its
+    own one-element array (on the CPU, wp.atomic_add is not atomic across concurrent launches)."""
+
+    def __init__(self, device: str) -> None:
+        self.device = device
+        self._arrays: list[wp.array] = []
+
+    def band(self) -> wp.array:
+        """A fresh (1,) int array for one band's launch."""
+        array = wp.zeros(1, dtype=int, device=self.device)
+        self._arrays.append(array)
+        return array
+
+    def total(self) -> int:
+        return sum(int(a.numpy()[0]) for a in self._arrays)

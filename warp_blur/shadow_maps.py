@@ -37,7 +37,7 @@ from .camera import Projection
 from .device_data import TriangleTables, device_array, make_bins, make_geometry, make_view
 from .lights import DISK, DISTANT, RECT, SPHERE
 from .log import warn_once
-from .parallel import launch_pixels
+from .parallel import launch_pixels, launch_row_bands
 from .shadow_lookup import FACE_WIDTH
 from .shadow_raster import render_shadow_texels, splat_shadow_depth, warp_texels
 
@@ -445,8 +445,8 @@ class ShadowMaps:
         view, geo, b, kept = self._face_scene(lay, face, m, s, subset, tiles=False)
         entries = wp.array(kept.astype(np.int32), dtype=int, device=self.device)
         depth = wp.array(base.ravel(), dtype=float, device=self.device)
-        launch_pixels(splat_shadow_depth, len(kept),
-                      lambda first, _n: [view, geo, b, entries, first, depth], self.device, self.threads)
+        launch_row_bands(splat_shadow_depth, len(kept), self.size,
+                         lambda y0, y1: [view, geo, b, entries, y0, y1, depth], self.device, self.threads)
         return depth.numpy().reshape(self.size, self.size)
 
     def _face_scene(self, lay: LightLayout, face: Face, m: int, s: Sample, subset: np.ndarray | None,

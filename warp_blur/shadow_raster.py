@@ -33,18 +33,20 @@ def render_shadow_texels(view: View, geo: Geometry, bins: Bins, first_pixel: int
 
 
 @wp.kernel(enable_backward=False)
-def splat_shadow_depth(view: View, geo: Geometry, bins: Bins, entries: wp.array(dtype=int), first: int,
+def splat_shadow_depth(view: View, geo: Geometry, bins: Bins, entries: wp.array(dtype=int), row_lo: int,
+                       row_hi: int,
                        # in/out
                        depth: wp.array(dtype=float)):
-    """depth[texel] = min(depth[texel], entry's depth there) for entry entries[first + tid] over
-    the texel centres of its box (the pairs the texel walk of render_shadow_texels tests, with
-    the same hit test): few, small triangles over a base map cost their own area, not the map's."""
-    e = entries[first + wp.tid()]
+    """depth[texel] = min(depth[texel], entry's depth there) for entry entries[tid] over the
+    texel centres of its box within rows [row_lo, row_hi) (the pairs the texel walk of
+    render_shadow_texels tests, with the same hit test): few, small triangles over a base map
+    cost their own area, not the map's. Launches for disjoint row bands may run in parallel."""
+    e = entries[wp.tid()]
     box = bins.entry_boxes[e]
     x0 = wp.max(int(wp.ceil(box[0] - 0.5)), 0)
     x1 = wp.min(int(wp.floor(box[2] - 0.5)), view.width - 1)
-    y0 = wp.max(int(wp.ceil(box[1] - 0.5)), 0)
-    y1 = wp.min(int(wp.floor(box[3] - 0.5)), view.height - 1)
+    y0 = wp.max(int(wp.ceil(box[1] - 0.5)), row_lo)
+    y1 = wp.min(int(wp.floor(box[3] - 0.5)), wp.min(view.height, row_hi) - 1)
     vi = geo.tri_vertices[geo.entry_tri[e]]
     a = entry_vertex(geo, e, vi[0], 0.0)
     b = entry_vertex(geo, e, vi[1], 0.0)

@@ -4,9 +4,10 @@
 Pipeline per frame: motion segments per prim (segments.py) -> tile bins, static and moving entries
 apart -> classify pass (intervals.py; a sample no moving entry reaches is resolved right there,
 like a sharp render) -> fill pass over the other samples, which computes and stores their
-intervals in one go (FIRST_FILL_ROOM each; a sample that had more is filled again with room for
-all, so nothing is dropped; pixel chunks keep the arrays within the memory budget) -> resolve
-(resolve.py).
+intervals (coverage and depth, no shading) in one go (FIRST_FILL_ROOM each; a sample that had
+more is filled again with room for all, so nothing is dropped; pixel chunks keep the arrays within
+the memory budget) -> resolve (resolve.py), which shades only the intervals it finds visible
+(radiance.py).
 """
 
 from __future__ import annotations
@@ -15,12 +16,12 @@ import numpy as np
 import warp as wp
 
 from ...frame import FrameContext
-from ...parallel import launch_pixels
+from ...parallel import BandCounter, launch_pixels
 from .intervals import classify_samples, fill_intervals
-from .resolve import RadiancePair, resolve_bitmask, resolve_exact
+from .resolve import resolve_bitmask, resolve_exact
 from .segments import prepare_motion
 
-BYTES_PER_INTERVAL = 8 + 8 + 24 + 4  # times, depths, radiance at both ends, sort index
+BYTES_PER_INTERVAL = 8 + 8 + 4 + 4  # times, depths, entry, sort index
 MAX_EXACT_EVENTS = 1 << 16
 # Intervals of room per listed sample in the first fill (and the pilot's); a sample that needs
 # more is filled again with exact room. With at least PILOT_MIN listed samples, every
@@ -53,12 +54,11 @@ class _IntervalPass:
 
     def __init__(self, ctx: FrameContext, view, geo, sh, moving_bins, sub: wp.vec2, n_shade: int,
                  lights_static: int, static_hit: wp.array, listed: wp.array, rgba: wp.array, weight: float,
-                 fallbacks: wp.array, truncated: wp.array) -> None:
+                 fallbacks: BandCounter, truncated: BandCounter, shaded: BandCounter) -> None:
         self.ctx, self.view, self.geo, self.sh, self.moving_bins = ctx, view, geo, sh, moving_bins
         self.sub, self.n_shade, self.lights_static = sub, n_shade, lights_static
         self.static_hit, self.listed, self.rgba, self.weight = static_hit, listed, rgba, weight
-        self.fallbacks, self.truncated = fallbacks, truncated
-        self.scratch = wp.zeros(1, dtype=int, device=ctx.device)
+        self.fallbacks, self.truncated, self.shaded = fallbacks, truncated, shaded
         self.total, self.max, self.peak_bytes, self.chunks, self.refilled = 0, 0, 0, 0, 0
         self.room = FIRST_FILL_ROOM
 
@@ -69,16 +69,16 @@ class _IntervalPass:
         self.peak_bytes = max(self.peak_bytes, n_iv * BYTES_PER_INTERVAL)
         self.chunks += 1
         arrays = (wp.empty(n_iv, dtype=wp.vec2, device=dev), wp.empty(n_iv, dtype=wp.vec2, device=dev),
-                  wp.empty(n_iv, dtype=RadiancePair, device=dev))
+                  wp.empty(n_iv, dtype=int, device=dev))
         pixels = wp.array(pixels_np, dtype=int, device=dev)
         spans = wp.array(spans_np, dtype=wp.vec2i, device=dev)
         counts = wp.zeros(len(pixels_np), dtype=int, device=dev)
-        fallbacks = self.fallbacks if count_fallbacks else self.scratch
+        fallbacks = self.fallbacks if count_fallbacks else BandCounter(dev)
         with ctx.timed("fill"):
             launch_pixels(fill_intervals, len(pixels_np),
-                          lambda first, _n: [self.view, self.geo, self.sh, self.moving_bins, self.sub, self.n_shade,
-                                             self.lights_static, pixels, first, spans, self.static_hit, self.listed, counts,
-                                             fallbacks, *arrays], dev, ctx.settings.threads)
+                          lambda first, _n: [self.view, self.geo, self.moving_bins, self.sub, pixels, first, spans,
+                                             self.static_hit, self.listed, counts, fallbacks.band(), *arrays],
+                          dev, ctx.settings.threads)
         return counts.numpy(), arrays
 
     def resolve(self, pixels_np: np.ndarray, spans_np: np.ndarray, arrays) -> None:
@@ -89,21 +89,24 @@ class _IntervalPass:
         bits = s.resolved_time_bits
         words = max((bits + 31) // 32, 1)
         dome = wp.vec3(*[float(x) for x in ctx.scene.dome])
-        iv_t, iv_z, iv_rgb = arrays
+        iv_t, iv_z, iv_e = arrays
+        shading = (self.view, self.geo, self.sh, self.sub, self.n_shade, self.lights_static, dome)
         pixels = wp.array(pixels_np.astype(np.int32), dtype=int, device=dev)
         spans = wp.array(spans_np.astype(np.int32), dtype=wp.vec2i, device=dev)
         with ctx.timed("resolve"):
             if bits > 0:
                 order = wp.empty(iv_t.shape[0], dtype=int, device=dev)
                 launch_pixels(resolve_bitmask, len(pixels_np),
-                              lambda first, n: [self.view, dome, pixels, spans, iv_t, iv_z, iv_rgb, bits, self.weight,
+                              lambda first, n: [*shading, pixels, spans, iv_t, iv_z, iv_e, bits, self.weight,
                                                 first, first, order,
-                                                wp.zeros((n, 2 * words), dtype=wp.uint32, device=dev), self.rgba],
+                                                wp.zeros((n, 3 * words), dtype=wp.uint32, device=dev),
+                                                self.shaded.band(), self.rgba],
                               dev, s.threads)
             else:
                 launch_pixels(resolve_exact, len(pixels_np),
-                              lambda first, _n: [self.view, dome, pixels, spans, iv_t, iv_z, iv_rgb, self.weight,
-                                                 first, MAX_EXACT_EVENTS, self.truncated, self.rgba], dev, s.threads)
+                              lambda first, _n: [*shading, pixels, spans, iv_t, iv_z, iv_e, self.weight,
+                                                 first, MAX_EXACT_EVENTS, self.truncated.band(), self.shaded.band(),
+                                                 self.rgba], dev, s.threads)
 
     def run(self, pixels_np: np.ndarray, budget: int) -> None:
         """Fill and resolve the listed samples. Many samples: a strided pilot (every PILOT_STRIDE-th)
@@ -155,8 +158,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     plan, geo, (static_bins, moving_bins), sh, view = prepare_motion(ctx)
     num_px = ctx.num_pixels
     rgba = wp.zeros((num_px, 4), dtype=float, device=dev)
-    fallbacks = wp.zeros(1, dtype=int, device=dev)
-    truncated = wp.zeros(1, dtype=int, device=dev)
+    fallbacks, truncated, shaded = BandCounter(dev), BandCounter(dev), BandCounter(dev)
     # int32 interval indices: chunks stay below 2**30 intervals
     budget = min(int(s.memory_budget_mb * 2**20 // BYTES_PER_INTERVAL), 2**30)
     subs = ctx.sub_pixel_offsets()
@@ -176,7 +178,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
         pixels_np = np.nonzero(listed.numpy())[0].astype(np.int32)
         listed_total += len(pixels_np)
         interval_pass = _IntervalPass(ctx, view, geo, sh, moving_bins, sub_v, n_shade, lights_static, static_hit,
-                                      listed, rgba, weight, fallbacks, truncated)
+                                      listed, rgba, weight, fallbacks, truncated, shaded)
         interval_pass.run(pixels_np, budget)
         passes.append(interval_pass)
     samples_total = max(num_px * len(subs), 1)
@@ -189,6 +191,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
         "interval_chunks": sum(p.chunks for p in passes), "pixels_with_motion": listed_total / samples_total,
         "pixels_refilled": sum(p.refilled for p in passes) / samples_total,
         "interval_room": max(p.room for p in passes),
-        "near_far_fallbacks": int(fallbacks.numpy()[0]), "exact_truncations": int(truncated.numpy()[0]),
+        "intervals_shaded": shaded.total(),
+        "near_far_fallbacks": fallbacks.total(), "exact_truncations": truncated.total(),
     })
     return rgba.numpy()

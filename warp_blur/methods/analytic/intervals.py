@@ -6,15 +6,14 @@ Each covered piece is then:
 - clipped to the near/far planes: where the entry's vertex depths straddle a plane, the view
   depth is sampled at 9 points and crossings are found by bisection (a *sampled fallback*,
   counted in the stats as `near_far_fallbacks`);
-- split where view depth is far from linear (checked at the midpoint) and into shading pieces:
-  one constant radiance for emissive-only materials or a static triangle under static lights;
-  otherwise radiance at both ends of each piece (linear in time), with as many pieces as the
-  radiance's curvature (its middle against its ends) needs to stay within 1/1024 of linear (up to
-  the `samples` cap), each stored as an interval (u0, u1, z0, z1, radiance at u0 and at u1).
+- split where view depth is far from linear (checked at the midpoint), each piece stored as an
+  interval (u0, u1, z0, z1, entry). Nothing is shaded here: the resolve shades the intervals it
+  finds visible (radiance.py), so hidden ones cost only their coverage.
 The classify pass finds each sample's nearest static surface and whether any moving entry can
-reach it in front (no shading); the fill pass computes and stores the intervals of the samples
-it lists in one go, each in a span of room, and reports how many there were, so a sample that
-needed more room is filled again with exactly that much.
+reach it in front (no shading; a sample none reaches is shaded and resolved there, like a sharp
+render); the fill pass computes and stores the intervals of the samples it lists in one go, each
+in a span of room, and reports how many there were, so a sample that needed more room is filled
+again with exactly that much.
 """
 
 from __future__ import annotations
@@ -23,96 +22,23 @@ import warp as wp
 
 from ...kernel_types import Bins, Geometry, Shading, View
 from ...raster import add_pixel, box_rejects, pixel_tile
-from ...rays import hit_from_edges, intersect_triangle, pixel_ray_direction, pixel_ray_origin, static_entry_hit
-from ...shading import max_component, shade_entry_hit, shade_entry_hit_span
+from ...rays import intersect_triangle, static_entry_hit
 from .coverage import DEGENERATE_TOL_F32, MAX_SPAN_PIECES, next_breakpoint, piece_covered, prism_edges
-from .resolve import RadiancePair, radiance_at, radiance_pair, span_slots
+from .moving import Moving, depth_at, depth_range, entry_moving, eye_relative, in_range, sample_ray
+from .radiance import boundary_radiance, lerp_in_time, radiance_plan, sub_piece_time
+from .resolve import span_slots
 
 MAX_PIECES = 16
 CLIP_SAMPLES = 8
-SHADE_TOLERANCE = wp.constant(1.0 / 256.0)
 
 
 @wp.func
-def plane_depth(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> float:
-    """View depth where the ray meets the triangle's plane (inf when parallel)."""
-    n = wp.cross(b - a, c - a)
-    den = wp.dot(d, n)
-    if den == 0.0:
-        return wp.inf
-    return wp.dot(a - o, n) / den
-
-
-@wp.func
-def plane_hit(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.vec4:
-    """(1, depth, w_b, w_c) of the ray and the triangle's plane, without the inside test."""
-    ao = a - o
-    bo = b - o
-    co = c - o
-    return hit_from_edges(a, b, c, wp.dot(d, wp.cross(ao, bo)), wp.dot(d, wp.cross(bo, co)), wp.dot(d, wp.cross(co, ao)))
-
-
-@wp.struct
-class Moving:
-    """An entry's triangle at both ends of its span (camera space)."""
-
-    a0: wp.vec3
-    b0: wp.vec3
-    c0: wp.vec3
-    a1: wp.vec3
-    b1: wp.vec3
-    c1: wp.vec3
-    u0: float
-    u1: float
-
-
-@wp.func
-def depth_at(m: Moving, o: wp.vec3, d: wp.vec3, s: float) -> float:
-    return plane_depth(o, d, m.a0 + s * (m.a1 - m.a0), m.b0 + s * (m.b1 - m.b0), m.c0 + s * (m.c1 - m.c0))
-
-
-@wp.func
-def depth_range(m: Moving) -> wp.vec2:
-    """(nearest, farthest) view depth of the triangle's six vertices: its hits over the span are
-    convex combinations of them."""
-    zmin = wp.min(wp.min(wp.min(-m.a0[2], -m.b0[2]), wp.min(-m.c0[2], -m.a1[2])), wp.min(-m.b1[2], -m.c1[2]))
-    zmax = wp.max(wp.max(wp.max(-m.a0[2], -m.b0[2]), wp.max(-m.c0[2], -m.a1[2])), wp.max(-m.b1[2], -m.c1[2]))
-    return wp.vec2(zmin, zmax)
-
-
-@wp.func
-def eye_relative(m: Moving, o: wp.vec3):
-    """The triangle's vertices at the span's start relative to the ray origin, and their changes."""
-    return m.a0 - o, m.b0 - o, m.c0 - o, m.a1 - m.a0, m.b1 - m.b0, m.c1 - m.c0
-
-
-@wp.func
-def in_range(view: View, z: float) -> bool:
-    return z >= view.near and z <= view.far
-
-
-@wp.func
-def shade_at(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s: float) -> wp.vec3:
-    """Radiance of entry e seen along the ray at entry time s."""
-    a = m.a0 + s * (m.a1 - m.a0)
-    b = m.b0 + s * (m.b1 - m.b0)
-    c = m.c0 + s * (m.c1 - m.c0)
-    return shade_entry_hit(view, geo, sh, e, s, m.u0 + s * (m.u1 - m.u0), o, d, plane_hit(o, d, a, b, c))
-
-
-@wp.func
-def piece_plan(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
-               s_a: float, s_b: float, n_shade_max: int, constant_radiance: int):
-    """How [s_a, s_b] is stored: (pieces, linear, radiance at s_a, at the middle, at s_b, view
-    depth at s_a, at s_b).
-
-    Pieces split where view depth is far from linear. With linear = 1 each piece carries the
-    radiance at its two ends (the resolve interpolates in time) and pieces also split where the
-    radiance curves: its middle off the ends' mean by c makes n >= sqrt(4 c × 256) pieces (capped
-    at `samples`), which keeps a smoothly curving radiance (off linear by c / n² per piece)
-    within 1/1024 of each piece's line. With linear = 0 (emissive-only, constant lighting of a
-    static surface, or one shading sample) each piece is one radiance at its middle, shadows
-    averaged over its span."""
+def emit_pieces(e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: float, s_b: float, limit: int, base: int,
+                iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int)) -> int:
+    """Store [s_a, s_b] of entry e (already known covered and within the clipping range) as
+    intervals at base, base + 1, ... (those below `limit` only: limit 0 counts), split where view
+    depth is far from linear (its middle off the ends' mean by more than 1e-3 of the depth);
+    returns how many it has. Radiance is left to the resolve (radiance.py)."""
     z_a = depth_at(m, o, d, s_a)
     z_b = depth_at(m, o, d, s_b)
     z_m = depth_at(m, o, d, 0.5 * (s_a + s_b))
@@ -121,57 +47,9 @@ def piece_plan(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.
     n = int(1)
     if err > tol and tol > 0.0:
         n = wp.min(int(wp.ceil(wp.sqrt(err / tol))), MAX_PIECES)
-    linear = int(0)
-    la = wp.vec3(0.0, 0.0, 0.0)
-    lm = wp.vec3(0.0, 0.0, 0.0)
-    lb = wp.vec3(0.0, 0.0, 0.0)
-    if constant_radiance == 0 and n_shade_max > 1:
-        linear = 1
-        la = shade_at(view, geo, sh, e, m, o, d, s_a)
-        lm = shade_at(view, geo, sh, e, m, o, d, 0.5 * (s_a + s_b))
-        lb = shade_at(view, geo, sh, e, m, o, d, s_b)
-        dev = max_component(wp.abs(lm - 0.5 * (la + lb))) * 4.0
-        ns = int(wp.ceil(wp.sqrt(dev / SHADE_TOLERANCE)))
-        n = wp.max(n, wp.clamp(ns, 1, n_shade_max))
-    return n, linear, la, lm, lb, z_a, z_b
-
-
-@wp.func
-def piece_radiance(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
-                   s0: float, s1: float) -> wp.vec3:
-    """Radiance of the piece [s0, s1] at its middle, with shadows averaged over the piece's shutter
-    span (a static receiver's single piece sees a moving shadow's whole time average)."""
-    du = m.u1 - m.u0
-    sm = 0.5 * (s0 + s1)
-    a = m.a0 + sm * (m.a1 - m.a0)
-    b = m.b0 + sm * (m.b1 - m.b0)
-    c = m.c0 + sm * (m.c1 - m.c0)
-    return shade_entry_hit_span(view, geo, sh, e, sm, m.u0 + sm * du, (s1 - s0) * du, o, d, plane_hit(o, d, a, b, c))
-
-
-@wp.func
-def piece_end_radiance(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
-                       s1: float, i: int, n: int, lm: wp.vec3, lb: wp.vec3) -> wp.vec3:
-    """Radiance at the end s1 of linear piece i of n (the plan's samples where they fall there)."""
-    if i + 1 == n:
-        return lb
-    if 2 * (i + 1) == n:
-        return lm
-    return shade_at(view, geo, sh, e, m, o, d, s1)
-
-
-@wp.func
-def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
-                s_a: float, s_b: float, n_shade_max: int, constant_radiance: int, limit: int, base: int,
-                iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=RadiancePair)) -> int:
-    """Store [s_a, s_b] (already known covered and within the clipping range) as intervals at
-    base, base + 1, ... (those below `limit` only: limit 0 counts); returns how many it has."""
-    n, linear, la, lm, lb, z_a, z_b = piece_plan(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max,
-                                                constant_radiance)
     if base < limit:
         du = m.u1 - m.u0
         z_prev = z_a
-        r0 = la
         for i in range(wp.min(n, limit - base)):
             s0 = s_a + (s_b - s_a) * float(i) / float(n)
             s1 = s_a + (s_b - s_a) * float(i + 1) / float(n)
@@ -180,26 +58,18 @@ def emit_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp
                 z1 = depth_at(m, o, d, s1)
             iv_t[base + i] = wp.vec2(m.u0 + s0 * du, m.u0 + s1 * du)
             iv_z[base + i] = wp.vec2(z_prev, z1)
-            if linear != 0:
-                r1 = piece_end_radiance(view, geo, sh, e, m, o, d, s1, i, n, lm, lb)
-                iv_rgb[base + i] = radiance_pair(r0, r1)
-                r0 = r1
-            else:
-                c = piece_radiance(view, geo, sh, e, m, o, d, s0, s1)
-                iv_rgb[base + i] = radiance_pair(c, c)
+            iv_e[base + i] = e
             z_prev = z1
     return n
 
 
 @wp.func
-def emit_clipped(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
-                 s_a: float, s_b: float, may_clip: int, n_shade_max: int, constant_radiance: int, limit: int,
-                 base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
-                 iv_rgb: wp.array(dtype=RadiancePair), fallbacks: wp.array(dtype=int)) -> int:
+def emit_clipped(view: View, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: float, s_b: float, may_clip: int,
+                 limit: int, base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
+                 iv_e: wp.array(dtype=int), fallbacks: wp.array(dtype=int)) -> int:
     """Emit the part of a covered piece inside the clipping range (sampled when it may cross)."""
     if may_clip == 0:
-        return emit_pieces(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, constant_radiance, limit, base,
-                           iv_t, iv_z, iv_rgb)
+        return emit_pieces(e, m, o, d, s_a, s_b, limit, base, iv_t, iv_z, iv_e)
     wp.atomic_add(fallbacks, 0, 1)
     count = int(0)
     prev_s = s_a
@@ -220,74 +90,29 @@ def emit_clipped(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: w
             if prev_in:
                 # leaving the range: keep [start, lo] (the inside end of the bracket)
                 if lo > start:
-                    count += emit_pieces(view, geo, sh, e, m, o, d, start, lo, n_shade_max, constant_radiance,
-                                         limit, base + count, iv_t, iv_z, iv_rgb)
+                    count += emit_pieces(e, m, o, d, start, lo, limit, base + count, iv_t, iv_z, iv_e)
             else:
                 start = hi
         prev_in = now_in
         prev_s = s
     if prev_in and s_b > start:
-        count += emit_pieces(view, geo, sh, e, m, o, d, start, s_b, n_shade_max, constant_radiance, limit,
-                             base + count, iv_t, iv_z, iv_rgb)
+        count += emit_pieces(e, m, o, d, start, s_b, limit, base + count, iv_t, iv_z, iv_e)
     return count
 
 
 @wp.func
-def entry_emissive_only(geo: Geometry, sh: Shading, e: int) -> int:
-    """1 when entry e's material reflects nothing (its radiance is its constant emission)."""
-    mat = geo.tri_material[geo.entry_tri[e]]
-    if sh.materials[mat, 10] < 0.5:
-        if wp.length(wp.vec3(sh.materials[mat, 0], sh.materials[mat, 1], sh.materials[mat, 2])) == 0.0:
-            if wp.length(wp.vec3(sh.materials[mat, 6], sh.materials[mat, 7], sh.materials[mat, 8])) == 0.0:
-                return 1
-    return 0
-
-
-@wp.func
-def static_constant(geo: Geometry, sh: Shading, e: int, lights_static: int) -> int:
-    """1 when a static entry's radiance is the same all shutter (emissive only, or static lights)."""
-    if lights_static != 0:
-        return 1
-    return entry_emissive_only(geo, sh, e)
-
-
-@wp.func
-def entry_moving(geo: Geometry, e: int) -> Moving:
-    """Entry e's triangle at both ends of its span (a static entry spans the whole shutter)."""
-    vi = geo.tri_vertices[geo.entry_tri[e]]
-    k0 = geo.entry_k0[e]
-    k1 = geo.entry_k1[e]
-    m = Moving()
-    m.a0 = geo.positions[k0, vi[0]]
-    m.b0 = geo.positions[k0, vi[1]]
-    m.c0 = geo.positions[k0, vi[2]]
-    m.a1 = geo.positions[k1, vi[0]]
-    m.b1 = geo.positions[k1, vi[1]]
-    m.c1 = geo.positions[k1, vi[2]]
-    m.u0 = 0.0
-    m.u1 = 1.0
-    if k0 != k1:
-        m.u0 = float(k0) / float(geo.num_segments)
-        m.u1 = float(k1) / float(geo.num_segments)
-    return m
-
-
-@wp.func
-def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
-                    n_shade_max: int, lights_static: int, limit: int, base: int, iv_t: wp.array(dtype=wp.vec2),
-                    iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=RadiancePair),
+def entry_intervals(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, limit: int, base: int,
+                    iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int),
                     fallbacks: wp.array(dtype=int)) -> int:
     """The number of coverage intervals of entry e (its triangle m = entry_moving(geo, e)) at a
     pixel ray, stored at base, base + 1, ... where below `limit` (limit 0 only counts)."""
     vi = geo.tri_vertices[geo.entry_tri[e]]
-    emissive_only = entry_emissive_only(geo, sh, e)
     if geo.entry_k0[e] == geo.entry_k1[e]:
         # static entry: covered for the whole shutter or never
         hit = intersect_triangle(o, d, m.a0, m.b0, m.c0, vi)
         if hit[0] == 0.0 or not in_range(view, hit[1]):
             return 0
-        return emit_pieces(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max, static_constant(geo, sh, e, lights_static),
-                           limit, base, iv_t, iv_z, iv_rgb)
+        return emit_pieces(e, m, o, d, 0.0, 1.0, limit, base, iv_t, iv_z, iv_e)
     a0, b0, c0, da, db, dc = eye_relative(m, o)
     ca, cb, cc, ra, rb, rc, dga, dgb, dgc = prism_edges(d, a0, da, b0, db, c0, dc, vi, DEGENERATE_TOL_F32)
     # may the view depth leave [near, far]? (the hit is a convex combination of the vertices)
@@ -302,17 +127,10 @@ def entry_intervals(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o
             s_next = next_breakpoint(ra, rb, rc, s_prev)
             sm = 0.5 * (s_prev + s_next)
             if piece_covered(ca, cb, cc, dga, dgb, dgc, a0, da, b0, db, c0, dc, vi, sm, 0) != 0:
-                count += emit_clipped(view, geo, sh, e, m, o, d, s_prev, s_next, may_clip, n_shade_max,
-                                      emissive_only, limit, base + count, iv_t, iv_z, iv_rgb, fallbacks)
+                count += emit_clipped(view, e, m, o, d, s_prev, s_next, may_clip, limit, base + count, iv_t, iv_z,
+                                      iv_e, fallbacks)
             s_prev = s_next
     return count
-
-
-@wp.func
-def sample_ray(view: View, px: int, py: int, sub: wp.vec2):
-    x = float(px) + sub[0]
-    y = float(py) + sub[1]
-    return pixel_ray_origin(view, x, y), pixel_ray_direction(view, x, y)
 
 
 @wp.func
@@ -340,10 +158,9 @@ def may_show(view: View, m: Moving, z_static: float) -> bool:
 
 
 @wp.func
-def moving_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, tile: int, start: int, sx: float,
-                     sy: float, o: wp.vec3, d: wp.vec3, z_static: float, n_shade_max: int, lights_static: int, limit: int,
-                     base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
-                     iv_rgb: wp.array(dtype=RadiancePair), fallbacks: wp.array(dtype=int)) -> int:
+def moving_intervals(view: View, geo: Geometry, moving_bins: Bins, tile: int, start: int, sx: float, sy: float,
+                     o: wp.vec3, d: wp.vec3, z_static: float, limit: int, base: int, iv_t: wp.array(dtype=wp.vec2),
+                     iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int), fallbacks: wp.array(dtype=int)) -> int:
     """Count, and store below `limit`, the intervals of the moving entries at a sample, from the
     tile's list position `start` on (first_reaching found none before it), skipping those
     entirely behind the nearest static surface (depth z_static)."""
@@ -353,8 +170,7 @@ def moving_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, 
         if not box_rejects(moving_bins, e, sx, sy):
             m = entry_moving(geo, e)
             if may_show(view, m, z_static):
-                n += entry_intervals(view, geo, sh, e, m, o, d, n_shade_max, lights_static, limit, base + n, iv_t,
-                                     iv_z, iv_rgb, fallbacks)
+                n += entry_intervals(view, geo, e, m, o, d, limit, base + n, iv_t, iv_z, iv_e, fallbacks)
     return n
 
 
@@ -396,20 +212,20 @@ def first_reaching(view: View, geo: Geometry, moving_bins: Bins, tile: int, sx: 
 @wp.func
 def static_color(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, n_shade_max: int,
                  lights_static: int, bits: int) -> wp.vec4:
-    """(rgb, alpha) of a sample that sees only static entry e (or the dome when e < 0): its pieces
-    weighted exactly as the resolve weighs them (time slots for bits > 0, span lengths for exact),
-    without storing intervals. Equals resolving the stored pieces."""
+    """(rgb, alpha) of a sample that sees only static entry e (or the dome when e < 0): its one
+    whole-shutter interval weighted exactly as the resolve weighs it (time slots for bits > 0,
+    span lengths for exact), without storing it. Equals resolving the stored interval."""
     if e < 0:
         return wp.vec4(sh.dome[0], sh.dome[1], sh.dome[2], 0.0)
     m = entry_moving(geo, e)
-    n, linear, la, lm, lb, _z_a, _z_b = piece_plan(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max,
-                                                   static_constant(geo, sh, e, lights_static))
+    n, linear, la, lm, lb = radiance_plan(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max, lights_static)
     color = wp.vec3(0.0, 0.0, 0.0)
     covered = float(0.0)
     r0 = la
+    t = wp.vec2(0.0, 1.0)
     for i in range(n):
-        s0 = float(i) / float(n)
-        s1 = float(i + 1) / float(n)
+        s0 = sub_piece_time(t, i, n)
+        s1 = sub_piece_time(t, i + 1, n)
         w = s1 - s0
         t_mean = 0.5 * (s0 + s1)
         if bits > 0:
@@ -417,11 +233,11 @@ def static_color(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: 
             w = float(slots[1] - slots[0]) / float(bits)
             t_mean = 0.5 * float(slots[0] + slots[1]) / float(bits)
         if linear != 0:
-            r1 = piece_end_radiance(view, geo, sh, e, m, o, d, s1, i, n, lm, lb)
-            color = color + radiance_at(radiance_pair(r0, r1), wp.vec2(s0, s1), t_mean) * w
+            r1 = boundary_radiance(view, geo, sh, e, m, o, d, 0.0, 1.0, i + 1, n, la, lm, lb)
+            color = color + lerp_in_time(r0, r1, s0, s1, t_mean) * w
             r0 = r1
         else:
-            color = color + piece_radiance(view, geo, sh, e, m, o, d, s0, s1) * w
+            color = color + la * w
         covered = covered + w
     if bits > 0:
         color = color + sh.dome * (1.0 - covered)
@@ -458,12 +274,11 @@ def classify_samples(view: View, geo: Geometry, sh: Shading, static_bins: Bins, 
 
 
 @wp.kernel(enable_backward=False)
-def fill_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, sub: wp.vec2, n_shade_max: int,
-                   lights_static: int, pixels: wp.array(dtype=int), first: int, spans: wp.array(dtype=wp.vec2i),
-                   static_hit: wp.array(dtype=int), listed: wp.array(dtype=int),
+def fill_intervals(view: View, geo: Geometry, moving_bins: Bins, sub: wp.vec2, pixels: wp.array(dtype=int), first: int,
+                   spans: wp.array(dtype=wp.vec2i), static_hit: wp.array(dtype=int), listed: wp.array(dtype=int),
                    # outputs
                    counts: wp.array(dtype=int), fallbacks: wp.array(dtype=int), iv_t: wp.array(dtype=wp.vec2),
-                   iv_z: wp.array(dtype=wp.vec2), iv_rgb: wp.array(dtype=RadiancePair)):
+                   iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int)):
     """Listed sample k = first + tid (pixel pixels[k]): counts[k] = its number of intervals (the
     moving entries' first, then its nearest static entry's), stored from spans[k][0] on in the
     chunk's arrays as far as they fit below spans[k][1]. One pass computes and stores; a sample
@@ -481,9 +296,9 @@ def fill_intervals(view: View, geo: Geometry, sh: Shading, moving_bins: Bins, su
     z_static = float(wp.inf)
     if e_static >= 0:
         z_static = static_entry_hit(geo, e_static, o, d)[1]
-    n = moving_intervals(view, geo, sh, moving_bins, pixel_tile(view, px, py), listed[pix] - 1, sx, sy, o, d, z_static,
-                         n_shade_max, lights_static, limit, base, iv_t, iv_z, iv_rgb, fallbacks)
+    n = moving_intervals(view, geo, moving_bins, pixel_tile(view, px, py), listed[pix] - 1, sx, sy, o, d, z_static,
+                         limit, base, iv_t, iv_z, iv_e, fallbacks)
     if e_static >= 0:
-        n += entry_intervals(view, geo, sh, e_static, entry_moving(geo, e_static), o, d, n_shade_max, lights_static,
-                             limit, base + n, iv_t, iv_z, iv_rgb, fallbacks)
+        n += entry_intervals(view, geo, e_static, entry_moving(geo, e_static), o, d, limit, base + n, iv_t, iv_z,
+                             iv_e, fallbacks)
     counts[k] = n

@@ -4,43 +4,26 @@ Bitmask mode (time_bits B > 0): time slot j stands for the instant (j + 0.5)/B o
 so the result equals accumulation with B instants, without noise. Intervals are sorted by their
 nearest depth; for each interval I in that order, the slots where a *later* interval J is in
 front of I (their depth lines cross inside the common span: the crossing time splits the span)
-are "stolen" from I. I contributes popcount(bits(I) & ~covered & ~stolen)/B × its radiance
-(linear in time: taken at the mean time of those slots) and marks bits(I) & ~stolen covered; the
-loop stops when every slot is covered. The background fills the uncovered slots; alpha is the
-covered share.
+are "stolen" from I. I's visible slots are bits(I) & ~covered & ~stolen; only then is I shaded
+(radiance.py): each of its linear sub-pieces contributes (its visible slots)/B × its radiance at
+their mean time. I marks bits(I) & ~stolen covered; the loop stops when every slot is covered.
+The background fills the uncovered slots; alpha is the covered share.
 
 Exact mode (time_bits 0): a sweep over time keeps the covered time as exact spans: at each event
 (an interval starts or ends, or another interval crosses in front of the current front one) the
-nearest interval changes; each span adds its length × the front radiance. No quantisation.
+nearest interval changes; each span adds the integral of the front interval's (piecewise linear)
+radiance over it. No quantisation.
 """
 
 from __future__ import annotations
 
 import warp as wp
 
-from ...kernel_types import View
+from ...kernel_types import Geometry, Shading, View
+from .moving import entry_moving, entry_time, sample_ray
+from .radiance import boundary_radiance, lerp_in_time, radiance_plan, sub_piece_time
 
 WORD_ALL = wp.constant(wp.uint32(0xFFFFFFFF))
-
-
-# An interval's radiance at its start (0:3) and end (3:6); linear in time between.
-RadiancePair = wp.types.vector(length=6, dtype=wp.float32)
-
-
-@wp.func
-def radiance_pair(start: wp.vec3, end: wp.vec3) -> RadiancePair:
-    return RadiancePair(start[0], start[1], start[2], end[0], end[1], end[2])
-
-
-@wp.func
-def radiance_at(c: RadiancePair, t: wp.vec2, time: float) -> wp.vec3:
-    """Radiance of an interval spanning shutter times t at `time` (linear between its ends)."""
-    r0 = wp.vec3(c[0], c[1], c[2])
-    r1 = wp.vec3(c[3], c[4], c[5])
-    f = float(0.5)
-    if t[1] > t[0]:
-        f = wp.clamp((time - t[0]) / (t[1] - t[0]), 0.0, 1.0)
-    return r0 + (r1 - r0) * f
 
 
 @wp.func
@@ -104,23 +87,105 @@ def sort_by_near_depth(order: wp.array(dtype=int), iv_z: wp.array(dtype=wp.vec2)
         order[j + 1] = k
 
 
+@wp.func
+def slot_sums(masks: wp.array2d(dtype=wp.uint32), row: int, col: int, j0: int, j1: int) -> wp.vec2i:
+    """(count, index sum) of the set bits in slots [j0, j1) of the bit row masks[row, col:]."""
+    count = int(0)
+    index_sum = int(0)
+    for w in range(j0 // 32, (j1 + 31) // 32):
+        x = masks[row, col + w] & word_mask(j0, j1, w)
+        c = popcount(x)
+        count += c
+        index_sum += bit_index_sum(x) + 32 * w * c
+    return wp.vec2i(count, index_sum)
+
+
+@wp.func
+def visible_radiance(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, t: wp.vec2,
+                     n_shade_max: int, lights_static: int, bits: int, masks: wp.array2d(dtype=wp.uint32), row: int,
+                     col: int) -> wp.vec3:
+    """The interval (entry e, shutter span t) shaded over its visible slots (the set bits of
+    masks[row, col:]): the sum over them of its radiance, / bits. Each linear sub-piece adds
+    (its visible slots) × its radiance at their mean time; sub-piece ends are shaded only for
+    sub-pieces with visible slots."""
+    m = entry_moving(geo, e)
+    s_a = entry_time(m, t[0])
+    s_b = entry_time(m, t[1])
+    n, linear, la, lm, lb = radiance_plan(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, lights_static)
+    color = wp.vec3(0.0, 0.0, 0.0)
+    r0 = la
+    have_r0 = int(1)
+    for k in range(n):
+        t0 = sub_piece_time(t, k, n)
+        t1 = sub_piece_time(t, k + 1, n)
+        slots = span_slots(t0, t1, bits)
+        sums = slot_sums(masks, row, col, slots[0], slots[1])
+        if sums[0] > 0:
+            share = float(sums[0]) / float(bits)
+            if linear == 0:
+                color = color + la * share
+            else:
+                if have_r0 == 0:
+                    r0 = boundary_radiance(view, geo, sh, e, m, o, d, s_a, s_b, k, n, la, lm, lb)
+                r1 = boundary_radiance(view, geo, sh, e, m, o, d, s_a, s_b, k + 1, n, la, lm, lb)
+                t_mean = (float(sums[1]) / float(sums[0]) + 0.5) / float(bits)
+                color = color + lerp_in_time(r0, r1, t0, t1, t_mean) * share
+                r0 = r1
+                have_r0 = 1
+        else:
+            have_r0 = 0
+    return color
+
+
+@wp.func
+def span_mean(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, t: wp.vec2, a: float, b: float,
+              n_shade_max: int, lights_static: int) -> wp.vec3:
+    """Mean over shutter times [a, b] (inside t) of the interval's (entry e, shutter span t)
+    piecewise linear radiance: each sub-piece overlapping [a, b] weighs in with its radiance at
+    the overlap's middle. With b <= a, the radiance at a (clamped to t)."""
+    m = entry_moving(geo, e)
+    s_a = entry_time(m, t[0])
+    s_b = entry_time(m, t[1])
+    n, linear, la, lm, lb = radiance_plan(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, lights_static)
+    if linear == 0:
+        return la
+    color = wp.vec3(0.0, 0.0, 0.0)
+    for k in range(n):
+        t0 = sub_piece_time(t, k, n)
+        t1 = sub_piece_time(t, k + 1, n)
+        lo = wp.max(a, t0)
+        hi = wp.min(b, t1)
+        point = b <= a and (a < t1 or k + 1 == n) and (a >= t0 or k == 0)
+        if hi > lo or point:
+            r0 = boundary_radiance(view, geo, sh, e, m, o, d, s_a, s_b, k, n, la, lm, lb)
+            r1 = boundary_radiance(view, geo, sh, e, m, o, d, s_a, s_b, k + 1, n, la, lm, lb)
+            if point:
+                return lerp_in_time(r0, r1, t0, t1, a)
+            color = color + lerp_in_time(r0, r1, t0, t1, 0.5 * (lo + hi)) * ((hi - lo) / (b - a))
+    return color
+
+
 @wp.kernel(enable_backward=False)
-def resolve_bitmask(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
-                    iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
-                    iv_rgb: wp.array(dtype=RadiancePair), bits: int, weight: float, first: int, band_first: int,
+def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_max: int, lights_static: int,
+                    dome: wp.vec3, pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
+                    iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int), bits: int,
+                    weight: float, first: int, band_first: int,
                     # outputs
-                    order: wp.array(dtype=int), masks: wp.array2d(dtype=wp.uint32), rgba: wp.array2d(dtype=float)):
+                    order: wp.array(dtype=int), masks: wp.array2d(dtype=wp.uint32), shaded: wp.array(dtype=int),
+                    rgba: wp.array2d(dtype=float)):
     """rgba[pixels[k]] += weight × the resolved colour of listed sample k = first + tid (intervals
-    spans[k][0]:spans[k][1] of the chunk's arrays); masks is per-thread scratch (band rows, 2×words)."""
+    spans[k][0]:spans[k][1] of the chunk's arrays, at sub-pixel position sub); masks is per-thread
+    scratch (band rows, 3 × words: covered, stolen, visible); shaded[0] counts the intervals shaded."""
     k = first + wp.tid()
     pix = pixels[k]
     row = k - band_first
     lo = spans[k][0]
     hi = spans[k][1]
     words = (bits + 31) // 32
-    for w in range(2 * words):
+    for w in range(3 * words):
         masks[row, w] = wp.uint32(0)
     sort_by_near_depth(order, iv_z, lo, hi)
+    o, d = sample_ray(view, pix % view.width, pix // view.width, sub)
     color = wp.vec3(0.0, 0.0, 0.0)
     covered = int(0)
     for ii in range(lo, hi):
@@ -163,19 +228,17 @@ def resolve_bitmask(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), span
                                 masks[row, words + w] = masks[row, words + w] | word_mask(sj[0], sj[1], w)
                     jj += 1
                 visible = int(0)
-                index_sum = int(0)
                 for w in range(w0, w1):
                     mine = word_mask(si[0], si[1], w) & ~masks[row, words + w]
                     new = mine & ~masks[row, w]
-                    count = popcount(new)
-                    visible += count
-                    index_sum += bit_index_sum(new) + 32 * w * count
+                    masks[row, 2 * words + w] = new
+                    visible += popcount(new)
                     masks[row, w] = masks[row, w] | mine
                 covered += visible
                 if visible > 0:
-                    # radiance is linear in time: its visible slots sum to count × value at their mean time
-                    t_mean = (float(index_sum) / float(visible) + 0.5) / float(bits)
-                    color = color + radiance_at(iv_rgb[i], ti, t_mean) * (float(visible) / float(bits))
+                    shaded[0] = shaded[0] + 1
+                    color = color + visible_radiance(view, geo, sh, iv_e[i], o, d, ti, n_shade_max, lights_static,
+                                                     bits, masks, row, 2 * words)
     color = color + dome * (float(bits - covered) / float(bits))
     rgba[pix, 0] = rgba[pix, 0] + weight * color[0]
     rgba[pix, 1] = rgba[pix, 1] + weight * color[1]
@@ -184,17 +247,20 @@ def resolve_bitmask(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), span
 
 
 @wp.kernel(enable_backward=False)
-def resolve_exact(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
-                  iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
-                  iv_rgb: wp.array(dtype=RadiancePair), weight: float, first: int, max_events: int,
+def resolve_exact(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_max: int, lights_static: int,
+                  dome: wp.vec3, pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
+                  iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int),
+                  weight: float, first: int, max_events: int,
                   # outputs
-                  truncated: wp.array(dtype=int), rgba: wp.array2d(dtype=float)):
+                  truncated: wp.array(dtype=int), shaded: wp.array(dtype=int), rgba: wp.array2d(dtype=float)):
     """rgba[pixels[k]] += weight × the exact time average of listed sample k = first + tid
-    (intervals spans[k][0]:spans[k][1]; sweep over events; no quantisation)."""
+    (intervals spans[k][0]:spans[k][1]; sweep over events; no quantisation); shaded[0] counts the
+    front spans shaded."""
     k = first + wp.tid()
     pix = pixels[k]
     lo = spans[k][0]
     hi = spans[k][1]
+    o, d = sample_ray(view, pix % view.width, pix // view.width, sub)
     color = wp.vec3(0.0, 0.0, 0.0)
     cover = float(0.0)
     tau = float(0.0)
@@ -239,7 +305,9 @@ def resolve_exact(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), spans:
             nxt = wp.min(tau + 1.0e-7, 1.0)
         span = nxt - tau
         if front >= 0:
-            color = color + radiance_at(iv_rgb[front], iv_t[front], tau + 0.5 * span) * span
+            shaded[0] = shaded[0] + 1
+            color = color + span_mean(view, geo, sh, iv_e[front], o, d, iv_t[front], tau, nxt, n_shade_max,
+                                      lights_static) * span
             cover = cover + span
         else:
             color = color + dome * span
@@ -249,7 +317,8 @@ def resolve_exact(view: View, dome: wp.vec3, pixels: wp.array(dtype=int), spans:
             # keep the front surface for the rest (counted: never silent)
             wp.atomic_add(truncated, 0, 1)
             if front >= 0:
-                color = color + radiance_at(iv_rgb[front], iv_t[front], tau) * (1.0 - tau)
+                color = color + span_mean(view, geo, sh, iv_e[front], o, d, iv_t[front], tau, tau, n_shade_max,
+                                          lights_static) * (1.0 - tau)
                 cover = cover + (1.0 - tau)
             else:
                 color = color + dome * (1.0 - tau)
