@@ -165,6 +165,20 @@ def span_mean(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.
     return color
 
 
+@wp.func
+def run_color(view: View, geo: Geometry, sh: Shading, dome: wp.vec3, o: wp.vec3, d: wp.vec3,
+              iv_t: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int), front: int, a: float, b: float,
+              n_shade_max: int, lights_static: int, shaded: wp.array(dtype=int)) -> wp.vec3:
+    """Integral over shutter times [a, b] of interval `front` (the dome when front < 0); counts
+    the shading in shaded[0]."""
+    if b <= a:
+        return wp.vec3(0.0, 0.0, 0.0)
+    if front < 0:
+        return dome * (b - a)
+    shaded[0] = shaded[0] + 1
+    return span_mean(view, geo, sh, iv_e[front], o, d, iv_t[front], a, b, n_shade_max, lights_static) * (b - a)
+
+
 @wp.kernel(enable_backward=False)
 def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_max: int, lights_static: int,
                     dome: wp.vec3, pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
@@ -255,7 +269,7 @@ def resolve_exact(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_
                   truncated: wp.array(dtype=int), shaded: wp.array(dtype=int), rgba: wp.array2d(dtype=float)):
     """rgba[pixels[k]] += weight × the exact time average of listed sample k = first + tid
     (intervals spans[k][0]:spans[k][1]; sweep over events; no quantisation); shaded[0] counts the
-    front spans shaded."""
+    runs of spans with one front interval, each shaded once."""
     k = first + wp.tid()
     pix = pixels[k]
     lo = spans[k][0]
@@ -265,6 +279,8 @@ def resolve_exact(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_
     cover = float(0.0)
     tau = float(0.0)
     events = int(0)
+    run_front = int(-1)
+    run_start = float(0.0)
     while tau < 1.0:
         # the front interval just after tau
         front = int(-1)
@@ -303,26 +319,31 @@ def resolve_exact(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_
                             nxt = tc
         if nxt <= tau:
             nxt = wp.min(tau + 1.0e-7, 1.0)
-        span = nxt - tau
+        if front != run_front:
+            # the run of spans with one front ends: its radiance is integrated over the whole run
+            color = color + run_color(view, geo, sh, dome, o, d, iv_t, iv_e, run_front, run_start, tau, n_shade_max,
+                                      lights_static, shaded)
+            run_front = front
+            run_start = tau
         if front >= 0:
-            shaded[0] = shaded[0] + 1
-            color = color + span_mean(view, geo, sh, iv_e[front], o, d, iv_t[front], tau, nxt, n_shade_max,
-                                      lights_static) * span
-            cover = cover + span
-        else:
-            color = color + dome * span
+            cover = cover + (nxt - tau)
         tau = nxt
         events += 1
         if events >= max_events and tau < 1.0:
             # keep the front surface for the rest (counted: never silent)
             wp.atomic_add(truncated, 0, 1)
+            color = color + run_color(view, geo, sh, dome, o, d, iv_t, iv_e, run_front, run_start, tau, n_shade_max,
+                                      lights_static, shaded)
             if front >= 0:
                 color = color + span_mean(view, geo, sh, iv_e[front], o, d, iv_t[front], tau, tau, n_shade_max,
                                           lights_static) * (1.0 - tau)
                 cover = cover + (1.0 - tau)
             else:
                 color = color + dome * (1.0 - tau)
+            run_start = 1.0
             tau = 1.0
+    color = color + run_color(view, geo, sh, dome, o, d, iv_t, iv_e, run_front, run_start, 1.0, n_shade_max,
+                              lights_static, shaded)
     rgba[pix, 0] = rgba[pix, 0] + weight * color[0]
     rgba[pix, 1] = rgba[pix, 1] + weight * color[1]
     rgba[pix, 2] = rgba[pix, 2] + weight * color[2]
