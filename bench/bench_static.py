@@ -6,7 +6,7 @@ The mostly static variant keeps 44 of the 870 rocks at the large scene's speeds 
 and ~17° of spin per frame): a stress case for the analytic method's moving pixels; the slow
 variant moves the same rocks at a quarter of those speeds.
 
-    python bench/bench_static.py [--resolution 1024x768] [--repeats 3] [--shadows auto,off]
+    python bench/bench_static.py [--resolution 1024x768] [--repeats 5] [--shadows auto,off]
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import warp_blur as wb  # noqa: E402
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--resolution", default="1024x768")
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=int, default=5, help="renders per row; the median is reported (the machine is shared and noisy)")
     ap.add_argument("--shadows", default="auto,off", help="comma-separated shadow modes to run")
     args = ap.parse_args()
     shadow_modes = [m for m in args.shadows.split(",") if m]
