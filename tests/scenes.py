@@ -107,16 +107,16 @@ def shadow_stage(path: str, occluder_samples=None, occluder_at=(-0.6, 1.0, 0.0),
     return path
 
 
-def ramp_light_stage(path: str) -> str:
+def ramp_light_stage(path: str, intensity: dict | None = None) -> str:
     """A static grey quad under a distant light whose intensity ramps linearly over the shutter
-    (radiance exactly linear in time), half hidden for part of the shutter by an emissive quad
-    sweeping in front of it."""
+    (radiance exactly linear in time; `intensity` maps frames to other time samples), half hidden
+    for part of the shutter by an emissive quad sweeping in front of it."""
     stage = new_stage(path)
     add_camera(stage)
     add_dome(stage)
     sun = add_distant_light(stage, "/World/Sun", rotate=(-20, 10, 0), shadows=False)
-    sun.GetIntensityAttr().Set(0.5, 0.5)
-    sun.GetIntensityAttr().Set(4.0, 1.5)
+    for frame, value in (intensity or {0.5: 0.5, 1.5: 4.0}).items():
+        sun.GetIntensityAttr().Set(value, frame)
     grey = add_material(stage, "/World/Looks/Grey", diffuse=(0.6, 0.6, 0.6))
     emit = add_material(stage, "/World/Looks/Emit", emissive=(0.9, 0.3, 0.1))
     add_quad(stage, "/World/Back", 3.0, 2.0, material=grey, translate=(0, 0, -2))

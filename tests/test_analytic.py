@@ -161,6 +161,47 @@ def test_radiance_linear_in_time_is_integrated_exactly_over_partial_visibility(s
     assert len(intervals) == 1
 
 
+def test_light_peaking_mid_shutter_gets_its_own_segments(scene_path):
+    """A light whose intensity rises to a peak at mid-shutter and falls back (USD interpolates its
+    time samples linearly) over static geometry: the motion planner gives the lights the segments
+    their own curve needs (two), so analytic and stochastic see the peak instead of the equal
+    intensities at open and close; analytic with an even shading-sample cap (a sub-piece boundary
+    on the peak) equals accumulation at the same 1024 instants."""
+    path = ramp_light_stage(scene_path(), intensity={0.5: 0.5, 1.0: 4.0, 1.5: 0.5})
+    res = (64, 48)
+    ref = wb.render(path, frame=1, resolution=res, samples=1024, aovs=(), shadows="off")
+    out = wb.render(path, frame=1, resolution=res, method="analytic", samples=4, time_bits=1024, aovs=())
+    assert out.stats["light_segments"] == 2
+    assert out.stats["motion_segments"]["/World/Back"] == 0
+    assert rmse(out.rgba, ref.rgba) <= 1e-5
+    sto = wb.render(path, frame=1, resolution=res, method="stochastic", samples=256, aovs=())
+    assert rmse(sto.rgba, ref.rgba) <= 2e-3
+
+
+def test_light_switched_off_mid_shutter(scene_path):
+    """A light made invisible at mid-shutter (a held value: never linear) keeps its table row with
+    no radiance; the planner gives the lights its most segments (32), says so once, and every
+    method renders the switch close to accumulation."""
+    from pxr import Usd, UsdGeom
+    path = ramp_light_stage(scene_path(), intensity={0.5: 2.0})
+    stage = Usd.Stage.Open(path)
+    visibility = UsdGeom.Imageable(stage.GetPrimAtPath("/World/Sun")).CreateVisibilityAttr()
+    visibility.Set(UsdGeom.Tokens.inherited, 0.0)
+    visibility.Set(UsdGeom.Tokens.invisible, 1.0)
+    stage.GetRootLayer().Save()
+    res = (64, 48)
+    ref = wb.render(path, frame=1, resolution=res, samples=1024, aovs=(), shadows="off")
+    out = wb.render(path, frame=1, resolution=res, method="analytic", time_bits=1024, aovs=())
+    assert out.stats["light_segments"] == 32
+    assert any("lights change faster" in w for w in out.stats["warnings"])
+    assert rmse(out.rgba, ref.rgba) <= 0.01
+    for method, kw in (("stochastic", {"samples": 256}), ("velocity", {})):
+        other = wb.render(path, frame=1, resolution=res, method=method, aovs=(), **kw)
+        assert np.isfinite(other.rgba).all()
+        if method == "stochastic":
+            assert rmse(other.rgba, ref.rgba) <= 0.01
+
+
 def test_memory_budget_renders_in_chunks_with_the_same_image(scene_path):
     path = moving_layers_stage(scene_path(), 8)
     whole = wb.render(path, frame=1, resolution=(32, 24), method="analytic", aovs=())

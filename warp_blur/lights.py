@@ -90,8 +90,9 @@ def light_table(lights: list[LightPrim], time: float, cam_from_world: np.ndarray
     t = Usd.TimeCode(time)
     rows = []
     for lp in lights:
-        if UsdGeom.Imageable(lp.prim).ComputeVisibility(t) == UsdGeom.Tokens.invisible:
-            continue
+        # an invisible light keeps its row with no radiance: tables keep one row per light at every
+        # instant, so animated visibility blends like any other light change
+        visible = UsdGeom.Imageable(lp.prim).ComputeVisibility(t) != UsdGeom.Tokens.invisible
         api = UsdLux.LightAPI(lp.prim)
         m_world = np.array(xform_cache.GetLocalToWorldTransform(lp.prim), np.float64)
         m = m_world @ cam_from_world
@@ -133,7 +134,7 @@ def light_table(lights: list[LightPrim], time: float, cam_from_world: np.ndarray
             row[10:13], row[13:16] = hu, hv
             if normalize and area > 0:
                 radiance = radiance / area
-        row[1:4] = radiance
+        row[1:4] = radiance if visible else 0.0
         rows.append(row)
     if not rows:
         return np.zeros((0, LIGHT_WIDTH), np.float32)

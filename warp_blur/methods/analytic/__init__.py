@@ -185,6 +185,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     total_iv = sum(p.total for p in passes)
     ctx.counters.update({
         "time_bits": bits, "shading_samples_max": n_shade, "motion_segments": plan.segments_per_prim,
+        "light_segments": plan.light_segments,
         "motion_segment_error_px": plan.max_error_px, "motion_snapshots": plan.snapshots, "motion_segments_capped": plan.capped, "entries": int(len(plan.entry_tri)),
         "intervals": total_iv, "intervals_per_pixel_mean": total_iv / samples_total,
         "intervals_per_pixel_max": max(p.max for p in passes), "interval_bytes_peak": max(p.peak_bytes for p in passes),

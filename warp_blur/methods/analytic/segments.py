@@ -6,8 +6,10 @@ from where USD puts it at the segments' midpoints (where a chord is farthest fro
 more than `time_error` × its own screen path length (an edge that moves slowly on screen turns a
 small position error into a large error in the time it covers a pixel: this keeps coverage-time
 errors near `time_error`), and at least motion:nonlinearSampleCount - 1 segments when its motion
-is not linear. A prim that does not
-move (in camera space) gets one static entry and no prism work.
+is not linear. A prim that does not move (in camera space) gets one static entry and no prism
+work. The lights count as one more unit: their tables (radiance, transform, size) are read
+linearly between the kept knots, so they get the fewest segments that keep every light within
+1e-3 of its own curve (a light that holds still costs nothing).
 """
 
 from __future__ import annotations
@@ -28,7 +30,8 @@ class MotionPlan:
     """Knots kept for the frame and the entries (triangle, knot span) to render.
 
     positions: (K+1, V, 3) float64 camera space at u = k/K; normals likewise (or None);
-    lights: (K+1, NL, LIGHT_WIDTH); entry_*: (E,) int32; segments_per_prim: path -> K_p (0 = static).
+    lights: (K+1, NL, LIGHT_WIDTH); entry_*: (E,) int32; segments_per_prim: path -> K_p (0 = static);
+    light_segments: the segments the lights' own curves need (0 = lights hold still).
     """
 
     positions: np.ndarray
@@ -43,6 +46,7 @@ class MotionPlan:
     snapshots: int = 0
     capped: list = None
     tri_visible: np.ndarray | None = None   # (K+1, T) bool at the knots
+    light_segments: int = 0
 
     def sample(self, u: float):
         """The planned scene at shutter time u (positions and lights linear between knots) as a
@@ -78,6 +82,26 @@ def screen_error_px(proj: Projection, truth: np.ndarray, approx: np.ndarray) -> 
     if truth.size == 0:
         return 0.0
     return float(screen_distance_px(proj, truth, approx).max())
+
+
+# Light table column groups (lights.py) that must follow the knots linearly, each within
+# LIGHT_TOLERANCE of its own size: radiance, position, the three axes, radius.
+LIGHT_GROUPS = ((1, 4), (4, 7), (7, 10), (10, 13), (13, 16), (16, 17))
+LIGHT_TOLERANCE = 1.0e-3
+MAX_LIGHT_SEGMENTS = 32   # a light that switches (visibility, a held value) is never linear
+
+
+def light_deviation(truth: np.ndarray, approx: np.ndarray) -> float:
+    """Largest relative deviation of light tables approx from truth ((NL, LIGHT_WIDTH) each): per
+    light and column group, |truth - approx| over the larger of their sizes."""
+    worst = 0.0
+    for c0, c1 in LIGHT_GROUPS:
+        a, b = truth[:, c0:c1].astype(np.float64), approx[:, c0:c1].astype(np.float64)
+        size = np.maximum(np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1))
+        err = np.linalg.norm(a - b, axis=1)
+        rel = np.where(size > 0.0, err / np.maximum(size, 1e-30), 0.0)
+        worst = max(worst, float(rel.max()) if len(rel) else 0.0)
+    return worst
 
 
 def _hint(prim) -> int:
@@ -119,10 +143,24 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
             continue
         path_px = sum(screen_distance_px(proj, b, a) for a, b in zip(ps, ps[1:]))
         pending[ui] = np.maximum(np.minimum(error_px, time_error * path_px), 1e-3)
+    # the lights (intensity, colour, transform) are a unit too: their table is read linearly
+    # between the kept knots, so it needs as many segments as its own curve does
+    light_k = 0
+    lights_pending = not instant and any(not np.array_equal(snap(probes[0]).lights, snap(k).lights)
+                                         for k in probes[1:])
     max_err = 0.0
     k = 1
-    while pending and 4 * k <= m:
+    while (pending or (lights_pending and k <= MAX_LIGHT_SEGMENTS)) and 4 * k <= m:
         stride = m // (4 * k)   # each of the K segments is checked at its quarter points (knots of 4K)
+        if lights_pending and k <= MAX_LIGHT_SEGMENTS:
+            dev_l = 0.0
+            for j in range(k):
+                a, b = 4 * j * stride, (4 * j + 4) * stride
+                la, lb = snap(a).lights, snap(b).lights
+                for q in (1, 2, 3):
+                    dev_l = max(dev_l, light_deviation(snap(a + q * stride).lights, la + (q / 4.0) * (lb - la)))
+            if dev_l <= LIGHT_TOLERANCE:
+                light_k, lights_pending = k, False
         for ui in list(pending):
             unit = scene.units[ui]
             o, n = scene.unit_vertex_offsets[ui], unit.num_points * unit.num_instances
@@ -161,7 +199,12 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
         warn_once(f"segments-cap:{scene.units[ui].path}",
                   f"{scene.units[ui].path}: motion needs more than {m} linear segments in this shutter; "
                   f"rendering with {m} (raise max_segments for more accuracy)")
-    k_global = max(seg_of_unit + [1])
+    if lights_pending:
+        light_k = min(m, MAX_LIGHT_SEGMENTS)
+        warn_once("light-segments-cap", f"the lights change faster over the shutter than {light_k} linear segments "
+                                        f"follow within {LIGHT_TOLERANCE:g} (a switch or a held value?); "
+                                        f"rendering them linear between {light_k + 1} knots")
+    k_global = max(seg_of_unit + [light_k, 1])
     stride = m // k_global
     keep = list(range(0, m + 1, stride))
     positions = np.stack([snap(i).positions for i in keep])
@@ -206,7 +249,7 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
                       entry_k0=cat(k0_e), entry_k1=cat(k1_e),
                       segments_per_prim={u.path: k for u, k in zip(scene.units, seg_of_unit)},
                       max_error_px=max_err, lights_static=lights_static, snapshots=len(snaps), capped=capped,
-                      tri_visible=vis)
+                      tri_visible=vis, light_segments=light_k)
 
 
 def prepare_motion(ctx):
