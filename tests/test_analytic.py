@@ -178,6 +178,22 @@ def test_light_peaking_mid_shutter_gets_its_own_segments(scene_path):
     assert rmse(sto.rgba, ref.rgba) <= 2e-3
 
 
+def test_light_deviation_is_relative_to_each_column_group():
+    """The planner's light check: per light and column group (radiance, position, axes, radius),
+    the deviation over the group's own size, so a bright light and a dim one, or a far light and a
+    near one, are held to the same relative accuracy."""
+    from warp_blur.methods.analytic.segments import light_deviation
+    truth = np.zeros((2, 18), np.float32)
+    truth[:, 1:4] = [[1.0, 1.0, 1.0], [100.0, 0.0, 0.0]]
+    truth[:, 4:7] = [[0.0, 0.0, -10.0], [0.0, 5.0, -5.0]]
+    assert light_deviation(truth, truth) == 0.0
+    approx = truth.copy()
+    approx[1, 1] = 100.05                       # 5e-4 of the bright light's radiance
+    assert 4.9e-4 < light_deviation(truth, approx) < 5.1e-4
+    approx[0, 5] = 0.1                          # 1e-2 of the first light's distance
+    assert 0.99e-2 < light_deviation(truth, approx) < 1.01e-2
+
+
 def test_light_switched_off_mid_shutter(scene_path):
     """A light made invisible at mid-shutter (a held value: never linear) keeps its table row with
     no radiance; the planner gives the lights its most segments (32), says so once, and every
