@@ -8,7 +8,7 @@ import pytest
 from scenes import shadow_stage
 
 import warp_blur as wb
-from warp_blur.metrics import rmse
+from warp_blur.metrics import max_abs, rmse
 from warp_blur.shadow_maps import fit_faces, light_frame, sample_pattern
 
 RES = (128, 96)
@@ -215,3 +215,24 @@ def test_texels_that_never_change_take_one_lookup_for_a_time_span(scene_path, mo
     assert every.stats["shadow_texels_varying"] == 1.0
     assert np.abs(steady.rgba - every.rgba).max() < 1e-5
     assert rmse(steady.rgba, render(path, "analytic", shadows="off").rgba) > 0.01   # there is a shadow
+
+
+def test_moving_receiver_is_not_shadowed_by_itself_at_other_instants(scene_path):
+    """A lit quad rushing towards the camera, the only geometry, under a sun from the camera side:
+    nothing can shadow it. Shadow maps at a few instants of the shutter hold the quad where it is
+    then; a lookup from where it is at another instant would find its own later self in front.
+    Each map is read with the receiver point moved to that map's instant, so shadows on change
+    nothing (time-continuous methods; accumulation's direct maps are per instant anyway)."""
+    from authoring import add_camera, add_distant_light, add_material, add_quad, new_stage
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    add_distant_light(stage, "/World/Sun", intensity=2.0, rotate=(-20, 10, 0))
+    grey = add_material(stage, "/World/Looks/Grey", diffuse=(0.7, 0.7, 0.7), roughness=0.8)
+    add_quad(stage, "/World/Wall", 2.0, 1.5, material=grey, translate_samples={0.5: (0, 0, -3.0), 1.5: (0, 0, 3.0)})
+    stage.GetRootLayer().Save()
+    for method, kw in (("analytic", {}), ("stochastic", {"samples": 16})):
+        lit = wb.render(path, frame=1, resolution=(64, 48), method=method, aovs=(), shadows="direct", **kw)
+        off = wb.render(path, frame=1, resolution=(64, 48), method=method, aovs=(), shadows="off", **kw)
+        assert lit.stats["shadow_lights"] == 1
+        assert max_abs(lit.rgba, off.rgba) <= 1e-4, method

@@ -50,10 +50,11 @@ def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, diffuse: wp.vec3, f0: wp.vec3, roug
 
 
 @wp.func
-def direct_light(sh: Shading, j: int, u: float, du: float, p: wp.vec3, n: wp.vec3, v: wp.vec3,
+def direct_light(sh: Shading, j: int, u: float, du: float, p: wp.vec3, vel: wp.vec3, n: wp.vec3, v: wp.vec3,
                  diffuse: wp.vec3, f0: wp.vec3, roughness: float) -> wp.vec3:
-    """Reflected radiance from light j at camera-space point p with normal n, view vector v, at
-    shutter time u (its shadow averaged over [u - du/2, u + du/2])."""
+    """Reflected radiance from light j at camera-space point p (moving with velocity vel, units
+    per shutter) with normal n, view vector v, at shutter time u (its shadow averaged over
+    [u - du/2, u + du/2])."""
     kind = int(sh.lights[0, j, 0])
     radiance = light_vec(sh, j, 1, u)
     out = wp.vec3(0.0, 0.0, 0.0)
@@ -105,8 +106,24 @@ def direct_light(sh: Shading, j: int, u: float, du: float, p: wp.vec3, n: wp.vec
                     e = cos_l * area / (16.0 * dist2)
                     out = out + wp.cw_mul(brdf(n, v, l, diffuse, f0, roughness), radiance) * (e * cos_s)
     if max_component(out) > 0.0:
-        out = out * light_visibility(sh, j, u, du, p, n)
+        out = out * light_visibility(sh, j, u, du, p, vel, n)
     return out
+
+
+@wp.func
+def entry_point_velocity(geo: Geometry, e: int, vi: wp.vec3i, hit: wp.vec4) -> wp.vec3:
+    """Camera-space velocity (units per shutter) of the surface point of entry e at barycentrics
+    (1 - w_b - w_c, w_b, w_c) = hit[2:4]: zero for a static entry."""
+    k0 = geo.entry_k0[e]
+    k1 = geo.entry_k1[e]
+    if k0 == k1:
+        return wp.vec3(0.0, 0.0, 0.0)
+    wb = hit[2]
+    wc = hit[3]
+    da = geo.positions[k1, vi[0]] - geo.positions[k0, vi[0]]
+    db = geo.positions[k1, vi[1]] - geo.positions[k0, vi[1]]
+    dc = geo.positions[k1, vi[2]] - geo.positions[k0, vi[2]]
+    return ((1.0 - wb - wc) * da + wb * db + wc * dc) * (float(geo.num_segments) / float(k1 - k0))
 
 
 @wp.func
@@ -151,6 +168,7 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
     if wp.dot(ng, v) < 0.0 and (flags & 1) != 0:
         n = -n
     out = emissive + wp.cw_mul(diffuse + f0, sh.dome)
+    vel = entry_point_velocity(geo, e, vi, hit)
     for j in range(sh.num_lights):
-        out = out + direct_light(sh, j, u, du, p, n, v, diffuse, f0, roughness)
+        out = out + direct_light(sh, j, u, du, p, vel, n, v, diffuse, f0, roughness)
     return out

@@ -168,16 +168,24 @@ def map_visibility(sh: Shading, first_face: int, num_faces: int, axes: wp.mat33,
 
 
 @wp.func
-def light_visibility_at(sh: Shading, j: int, u: float, p: wp.vec3, n: wp.vec3) -> float:
+def map_instant(sh: Shading, b: int, u: float) -> float:
+    """Shutter time of map instant b (maps at (b + 0.5)/times; a single map stands for u itself)."""
+    if sh.shadow_times > 1:
+        return (float(b) + 0.5) / float(sh.shadow_times)
+    return u
+
+
+@wp.func
+def light_visibility_at(sh: Shading, j: int, u: float, p: wp.vec3, vel: wp.vec3, n: wp.vec3) -> float:
     """Visibility of light j from p at shutter time u: mean over the light's samples, linear in
-    time between the maps' instants."""
+    time between the maps' instants. Each map is read as of its own instant: the light's frame
+    then, and the receiver point moved there with its velocity vel (camera-space units per
+    shutter), so a moving surface is never shadowed by where it was (or will be) itself."""
     first = sh.shadow_lights[j, 0]
     if first < 0:
         return 1.0
     num_samples = sh.shadow_lights[j, 1]
     num_faces = sh.shadow_lights[j, 2]
-    axes = light_axes(sh, j, u)
-    origin = light_vec(sh, j, 4, u)
     times = sh.shadow_times
     b0 = int(0)
     b1 = int(0)
@@ -187,31 +195,41 @@ def light_visibility_at(sh: Shading, j: int, u: float, p: wp.vec3, n: wp.vec3) -
         b0 = wp.clamp(int(wp.floor(x)), 0, times - 1)
         b1 = wp.min(b0 + 1, times - 1)
         frac = wp.clamp(x - float(b0), 0.0, 1.0)
+    t0 = map_instant(sh, b0, u)
+    t1 = map_instant(sh, b1, u)
+    axes0 = light_axes(sh, j, t0)
+    origin0 = light_vec(sh, j, 4, t0)
+    axes1 = light_axes(sh, j, t1)
+    origin1 = light_vec(sh, j, 4, t1)
+    p0 = p + (t0 - u) * vel
+    p1 = p + (t1 - u) * vel
     total = float(0.0)
     for m in range(num_samples):
-        v = map_visibility(sh, first + (m * times + b0) * num_faces, num_faces, axes, origin, p, n)
+        v = map_visibility(sh, first + (m * times + b0) * num_faces, num_faces, axes0, origin0, p0, n)
         if frac > 0.0 and b1 != b0:
-            v1 = map_visibility(sh, first + (m * times + b1) * num_faces, num_faces, axes, origin, p, n)
+            v1 = map_visibility(sh, first + (m * times + b1) * num_faces, num_faces, axes1, origin1, p1, n)
             v = v + frac * (v1 - v)
         total += v
     return total / float(num_samples)
 
 
 @wp.func
-def light_visibility(sh: Shading, j: int, u: float, du: float, p: wp.vec3, n: wp.vec3) -> float:
-    """Mean visibility of light j over shutter times [u - du/2, u + du/2] (du = 0: the instant u),
-    sampled once per map instant the span covers."""
+def light_visibility(sh: Shading, j: int, u: float, du: float, p: wp.vec3, vel: wp.vec3, n: wp.vec3) -> float:
+    """Mean visibility of light j over shutter times [u - du/2, u + du/2] (du = 0: the instant u)
+    from receiver point p (at u, moving with velocity vel), sampled once per map instant the span
+    covers."""
     if sh.shadow_lights[j, 0] < 0:
         return 1.0
     steps = int(1)
     if du > 0.0 and sh.shadow_times > 1:
         steps = wp.clamp(int(wp.ceil(du * float(sh.shadow_times))), 1, sh.shadow_times)
     if steps == 1:
-        return light_visibility_at(sh, j, u, p, n)
-    if light_steady(sh, j, u, p, n):
+        return light_visibility_at(sh, j, u, p, vel, n)
+    if wp.length(vel) == 0.0 and light_steady(sh, j, u, p, n):
         # the same at every instant: look up at the first map's own instant (one map, no blend)
-        return light_visibility_at(sh, j, 0.5 / float(sh.shadow_times), p, n)
+        return light_visibility_at(sh, j, 0.5 / float(sh.shadow_times), p, vel, n)
     total = float(0.0)
     for i in range(steps):
-        total += light_visibility_at(sh, j, u - 0.5 * du + du * (float(i) + 0.5) / float(steps), p, n)
+        ui = u - 0.5 * du + du * (float(i) + 0.5) / float(steps)
+        total += light_visibility_at(sh, j, ui, p + (ui - u) * vel, vel, n)
     return total / float(steps)
