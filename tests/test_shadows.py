@@ -222,7 +222,8 @@ def test_moving_receiver_is_not_shadowed_by_itself_at_other_instants(scene_path)
     nothing can shadow it. Shadow maps at a few instants of the shutter hold the quad where it is
     then; a lookup from where it is at another instant would find its own later self in front.
     Each map is read with the receiver point moved to that map's instant, so shadows on change
-    nothing (time-continuous methods; accumulation's direct maps are per instant anyway)."""
+    nothing: in the time-continuous methods, and in accumulation when its instants share warped
+    maps at fewer instants (its direct maps are per instant anyway)."""
     from authoring import add_camera, add_distant_light, add_material, add_quad, new_stage
     path = scene_path()
     stage = new_stage(path)
@@ -231,8 +232,9 @@ def test_moving_receiver_is_not_shadowed_by_itself_at_other_instants(scene_path)
     grey = add_material(stage, "/World/Looks/Grey", diffuse=(0.7, 0.7, 0.7), roughness=0.8)
     add_quad(stage, "/World/Wall", 2.0, 1.5, material=grey, translate_samples={0.5: (0, 0, -3.0), 1.5: (0, 0, 3.0)})
     stage.GetRootLayer().Save()
-    for method, kw in (("analytic", {}), ("stochastic", {"samples": 16})):
-        lit = wb.render(path, frame=1, resolution=(64, 48), method=method, aovs=(), shadows="direct", **kw)
+    for method, mode, kw in (("analytic", "direct", {}), ("stochastic", "direct", {"samples": 16}),
+                             ("accumulation", "warped", {"samples": 16, "shadow_times": 4})):
+        lit = wb.render(path, frame=1, resolution=(64, 48), method=method, aovs=(), shadows=mode, **kw)
         off = wb.render(path, frame=1, resolution=(64, 48), method=method, aovs=(), shadows="off", **kw)
         assert lit.stats["shadow_lights"] == 1
         assert max_abs(lit.rgba, off.rgba) <= 1e-4, method

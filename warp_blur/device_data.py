@@ -47,8 +47,11 @@ class TriangleTables:
 
 
 def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.ndarray | None,
-                  entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray) -> Geometry:
-    """positions: (K+1, V, 3) camera space (float64 ok); normals: same shape or None."""
+                  entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray,
+                  velocities: np.ndarray | None = None) -> Geometry:
+    """positions: (K+1, V, 3) camera space (float64 ok); normals: same shape or None;
+    velocities: (V, 3) camera-space units per shutter of the vertices at a sharp instant, for
+    shadow lookups in maps of other instants (None: static entries hold still)."""
     dev = tables.device
     g = Geometry()
     k1, v = positions.shape[0], max(positions.shape[1], 1)
@@ -65,6 +68,12 @@ def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.nda
     g.entry_k0 = device_array(entry_k0.astype(np.int32), int, dev)
     g.entry_k1 = device_array(entry_k1.astype(np.int32), int, dev)
     g.num_segments = max(k1 - 1, 1)
+    if velocities is None or velocities.size == 0:
+        g.velocities = wp.zeros(1, dtype=wp.vec3, device=dev)
+        g.has_velocities = 0
+    else:
+        g.velocities = wp.array(np.ascontiguousarray(velocities, np.float32), dtype=wp.vec3, device=dev)
+        g.has_velocities = 1
     return g
 
 

@@ -52,6 +52,7 @@ class FrameContext:
     aov_motion: np.ndarray | None = None
     aov_depth: np.ndarray | None = None
     _instant_shadows: ShadowMaps | None = None
+    _velocities: tuple | None = None   # (snapshot time, (V, 3) velocities) of the last sharp instant
     _shading_last: tuple | None = None   # (time, Shading) of the last instant shaded
     probe_snapshots: dict = field(default_factory=dict)   # shutter fraction -> Snapshot (static_frame's)
     instants: int = 1   # sharp instants this frame will shade (accumulation sets it)
@@ -180,10 +181,32 @@ class FrameContext:
         n = self.settings.spatial_samples
         return [((i + 0.5) / n, (j + 0.5) / n) for j in range(n) for i in range(n)]
 
+    def receiver_velocities(self, snapshot: Snapshot) -> np.ndarray | None:
+        """(V, 3) vertex velocities (units per shutter) at a sharp instant whose shading reads
+        shadow maps of other instants (warped maps shared by the frame's instants), so that a
+        moving receiver's lookups move with it; None when its maps are its own. The instant's
+        shading knows the lights only as of this instant, in this instant's camera frame, so the
+        velocities are the vertices' world motion expressed in that frame (camera motion left out)."""
+        maps = self._instant_shadows
+        if not maps or maps.static or maps.options.mode == "direct" or self.instants <= self.settings.shadow_times:
+            return None
+        if self._velocities is not None and self._velocities[0] == snapshot.time:
+            return self._velocities[1]
+        u = self.shutter_fraction(snapshot.time)
+        h = 0.25 / self.instants
+        u2 = u + h if u + h <= 1.0 else u - h
+        other = self.snapshot(u2, with_normals=False)
+        to_this_camera = np.linalg.inv(other.cam_from_world) @ snapshot.cam_from_world   # row vectors
+        moved = other.positions @ to_this_camera[:3, :3] + to_this_camera[3, :3]
+        velocities = (moved - snapshot.positions) / (u2 - u)
+        self._velocities = (snapshot.time, velocities)
+        return velocities
+
     def static_geometry(self, snapshots: list[Snapshot], knot: int,
-                        triangles: np.ndarray | None = None) -> tuple[Geometry, TileBins]:
+                        triangles: np.ndarray | None = None,
+                        velocities: np.ndarray | None = None) -> tuple[Geometry, TileBins]:
         """Geometry with all snapshots as knots, and static entries at `knot` for visible triangles
-        (of `triangles`, a (T,) mask, when given)."""
+        (of `triangles`, a (T,) mask, when given), moving with `velocities` for shadow lookups."""
         positions = np.stack([s.positions for s in snapshots])
         normals = np.stack([s.normals for s in snapshots]) if self.scene.any_smooth else None
         visible = snapshots[knot].tri_visible
@@ -192,7 +215,7 @@ class FrameContext:
         tris = np.nonzero(visible)[0].astype(np.int32)
         k = np.full(len(tris), knot, np.int32)
         bins = self.bin(positions, tris, k, k)
-        return make_geometry(self.tables, positions, normals, tris, k, k), bins
+        return make_geometry(self.tables, positions, normals, tris, k, k, velocities), bins
 
     def sharp_pass(self, snapshot: Snapshot, weight: float, rgba: wp.array, pixels: np.ndarray | None = None,
                    record: bool = False, triangles: np.ndarray | None = None) -> "RecordedHits | None":
@@ -201,8 +224,8 @@ class FrameContext:
         there). With record, returns each listed pixel's hits for reshade_pass."""
         if pixels is not None and len(pixels) == 0:
             return None
-        geo, bins = self.static_geometry([snapshot], 0, triangles)
         sh = self.shading([snapshot])
+        geo, bins = self.static_geometry([snapshot], 0, triangles, self.receiver_velocities(snapshot))
         view, b = self.view(bins), make_bins(bins, self.device)
         u = self.shutter_fraction(snapshot.time)   # static entries ignore it; shadow maps shared over time use it
         dev = self.device
@@ -226,8 +249,9 @@ class FrameContext:
         tris = np.arange(self.scene.num_triangles, dtype=np.int32)
         k = np.zeros(len(tris), np.int32)
         normals = snapshot.normals[None] if self.scene.any_smooth else None
-        geo = make_geometry(self.tables, snapshot.positions[None], normals, tris, k, k)   # entry = triangle
         sh = self.shading([snapshot])
+        geo = make_geometry(self.tables, snapshot.positions[None], normals, tris, k, k,
+                            self.receiver_velocities(snapshot))   # entry = triangle
         u = self.shutter_fraction(snapshot.time)
         with self.timed("render"):
             launch_pixels(shade_recorded, hits.pixels.shape[0],

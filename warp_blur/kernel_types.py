@@ -43,6 +43,8 @@ class Geometry:
     entry_k0: wp.array(dtype=int)           # (E,)
     entry_k1: wp.array(dtype=int)           # (E,)
     num_segments: int                       # K
+    velocities: wp.array(dtype=wp.vec3)     # (V,) per-shutter vertex velocities of static entries, or (1,) unused
+    has_velocities: int                     # 1 when `velocities` holds them (a sharp instant whose shadow maps are at other instants)
 
 
 @wp.struct

@@ -113,13 +113,16 @@ def direct_light(sh: Shading, j: int, u: float, du: float, p: wp.vec3, vel: wp.v
 @wp.func
 def entry_point_velocity(geo: Geometry, e: int, vi: wp.vec3i, hit: wp.vec4) -> wp.vec3:
     """Camera-space velocity (units per shutter) of the surface point of entry e at barycentrics
-    (1 - w_b - w_c, w_b, w_c) = hit[2:4]: zero for a static entry."""
+    (1 - w_b - w_c, w_b, w_c) = hit[2:4]: from its span's knots, or for a static entry from the
+    sharp instant's vertex velocities when the geometry has them (else zero)."""
     k0 = geo.entry_k0[e]
     k1 = geo.entry_k1[e]
-    if k0 == k1:
-        return wp.vec3(0.0, 0.0, 0.0)
     wb = hit[2]
     wc = hit[3]
+    if k0 == k1:
+        if geo.has_velocities == 0:
+            return wp.vec3(0.0, 0.0, 0.0)
+        return (1.0 - wb - wc) * geo.velocities[vi[0]] + wb * geo.velocities[vi[1]] + wc * geo.velocities[vi[2]]
     da = geo.positions[k1, vi[0]] - geo.positions[k0, vi[0]]
     db = geo.positions[k1, vi[1]] - geo.positions[k0, vi[1]]
     dc = geo.positions[k1, vi[2]] - geo.positions[k0, vi[2]]
