@@ -197,16 +197,20 @@ def light_visibility_at(sh: Shading, j: int, u: float, p: wp.vec3, vel: wp.vec3,
         frac = wp.clamp(x - float(b0), 0.0, 1.0)
     t0 = map_instant(sh, b0, u)
     t1 = map_instant(sh, b1, u)
+    blend = frac > 0.0 and b1 != b0
     axes0 = light_axes(sh, j, t0)
     origin0 = light_vec(sh, j, 4, t0)
-    axes1 = light_axes(sh, j, t1)
-    origin1 = light_vec(sh, j, 4, t1)
+    axes1 = axes0
+    origin1 = origin0
+    if blend and sh.shadow_lights[j, 3] != 1:   # a light that holds still has one frame
+        axes1 = light_axes(sh, j, t1)
+        origin1 = light_vec(sh, j, 4, t1)
     p0 = p + (t0 - u) * vel
     p1 = p + (t1 - u) * vel
     total = float(0.0)
     for m in range(num_samples):
         v = map_visibility(sh, first + (m * times + b0) * num_faces, num_faces, axes0, origin0, p0, n)
-        if frac > 0.0 and b1 != b0:
+        if blend:
             v1 = map_visibility(sh, first + (m * times + b1) * num_faces, num_faces, axes1, origin1, p1, n)
             v = v + frac * (v1 - v)
         total += v
