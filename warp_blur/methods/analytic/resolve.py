@@ -24,6 +24,13 @@ from .moving import entry_moving, entry_time, sample_ray
 from .radiance import boundary_radiance, lerp_in_time, radiance_plan, sub_piece_time
 
 WORD_ALL = wp.constant(wp.uint32(0xFFFFFFFF))
+# bits whose index has bit 0, 1, 2, 3, 4 set (module constants: inline literals above 2**31 make
+# the generated C++ narrow them through int32, with a compiler warning)
+INDEX_BIT_0 = wp.constant(wp.uint32(0xAAAAAAAA))
+INDEX_BIT_1 = wp.constant(wp.uint32(0xCCCCCCCC))
+INDEX_BIT_2 = wp.constant(wp.uint32(0xF0F0F0F0))
+INDEX_BIT_3 = wp.constant(wp.uint32(0xFF00FF00))
+INDEX_BIT_4 = wp.constant(wp.uint32(0xFFFF0000))
 
 
 @wp.func
@@ -37,9 +44,8 @@ def popcount(x: wp.uint32) -> int:
 @wp.func
 def bit_index_sum(x: wp.uint32) -> int:
     """Sum of the indices (0..31) of the set bits of x."""
-    return (popcount(x & wp.uint32(0xAAAAAAAA)) + 2 * popcount(x & wp.uint32(0xCCCCCCCC))
-            + 4 * popcount(x & wp.uint32(0xF0F0F0F0)) + 8 * popcount(x & wp.uint32(0xFF00FF00))
-            + 16 * popcount(x & wp.uint32(0xFFFF0000)))
+    return (popcount(x & INDEX_BIT_0) + 2 * popcount(x & INDEX_BIT_1) + 4 * popcount(x & INDEX_BIT_2)
+            + 8 * popcount(x & INDEX_BIT_3) + 16 * popcount(x & INDEX_BIT_4))
 
 
 @wp.func
