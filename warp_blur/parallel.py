@@ -23,6 +23,17 @@ def _pool(n: int) -> ThreadPoolExecutor:
     return _pools[n]
 
 
+def _run_bands(kernel, device: str, threads: int, starts: range, run: Callable[[int], None]) -> None:
+    """Compile `kernel` once, then run(start) for each band start from the thread pool."""
+    wp.load_module(kernel.module, device=device)
+    list(_pool(threads).map(run, starts))
+
+
+def _band_size(total: int, threads: int, bands_per_thread: int) -> int:
+    num_bands = min(total, threads * bands_per_thread)
+    return (total + num_bands - 1) // num_bands
+
+
 def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], device: str,
                   threads: int | None = None, start: int = 0, bands_per_thread: int = 4,
                   max_band: int | None = None) -> None:
@@ -35,9 +46,7 @@ def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], d
     if (device != "cpu" or threads == 1) and (max_band is None or num_pixels <= max_band):
         wp.launch(kernel, dim=num_pixels, inputs=inputs(start, num_pixels), device=device)
         return
-    wp.load_module(kernel.module, device=device)
-    num_bands = min(num_pixels, threads * bands_per_thread)
-    size = (num_pixels + num_bands - 1) // num_bands
+    size = _band_size(num_pixels, threads, bands_per_thread)
     if max_band is not None:
         size = max(1, min(size, max_band))
 
@@ -45,7 +54,7 @@ def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], d
         count = min(size, start + num_pixels - first)
         wp.launch(kernel, dim=count, inputs=inputs(first, count), device=device)
 
-    list(_pool(threads).map(run, range(start, start + num_pixels, size)))
+    _run_bands(kernel, device, threads, range(start, start + num_pixels, size), run)
 
 
 def launch_row_bands(kernel, dim: int, rows: int, inputs: Callable[[int, int], list], device: str,
@@ -60,14 +69,12 @@ def launch_row_bands(kernel, dim: int, rows: int, inputs: Callable[[int, int], l
     if device != "cpu" or threads == 1:
         wp.launch(kernel, dim=dim, inputs=inputs(0, rows), device=device)
         return
-    wp.load_module(kernel.module, device=device)
-    num_bands = min(rows, threads * bands_per_thread)
-    size = (rows + num_bands - 1) // num_bands
+    size = _band_size(rows, threads, bands_per_thread)
 
     def run(y0: int) -> None:
         wp.launch(kernel, dim=dim, inputs=inputs(y0, min(y0 + size, rows)), device=device)
 
-    list(_pool(threads).map(run, range(0, rows, size)))
+    _run_bands(kernel, device, threads, range(0, rows, size), run)
 
 
 class BandCounter:
