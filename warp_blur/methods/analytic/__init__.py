@@ -88,9 +88,8 @@ class _IntervalPass:
         ctx, dev, s = self.ctx, self.ctx.device, self.ctx.settings
         bits = s.resolved_time_bits
         words = max((bits + 31) // 32, 1)
-        dome = wp.vec3(*[float(x) for x in ctx.scene.dome])
         iv_t, iv_z, iv_e = arrays
-        shading = (self.view, self.geo, self.sh, self.sub, self.n_shade, self.lights_static, dome)
+        shading = (self.view, self.geo, self.sh, self.sub, self.n_shade, self.lights_static)
         pixels = wp.array(pixels_np.astype(np.int32), dtype=int, device=dev)
         spans = wp.array(spans_np.astype(np.int32), dtype=wp.vec2i, device=dev)
         with ctx.timed("resolve"):

@@ -172,7 +172,7 @@ def span_mean(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.
 
 
 @wp.func
-def run_color(view: View, geo: Geometry, sh: Shading, dome: wp.vec3, o: wp.vec3, d: wp.vec3,
+def run_color(view: View, geo: Geometry, sh: Shading, o: wp.vec3, d: wp.vec3,
               iv_t: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int), front: int, a: float, b: float,
               n_shade_max: int, lights_static: int, shaded: wp.array(dtype=int)) -> wp.vec3:
     """Integral over shutter times [a, b] of interval `front` (the dome when front < 0); counts
@@ -180,14 +180,14 @@ def run_color(view: View, geo: Geometry, sh: Shading, dome: wp.vec3, o: wp.vec3,
     if b <= a:
         return wp.vec3(0.0, 0.0, 0.0)
     if front < 0:
-        return dome * (b - a)
+        return sh.dome * (b - a)
     shaded[0] = shaded[0] + 1
     return span_mean(view, geo, sh, iv_e[front], o, d, iv_t[front], a, b, n_shade_max, lights_static) * (b - a)
 
 
 @wp.kernel(enable_backward=False)
 def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_max: int, lights_static: int,
-                    dome: wp.vec3, pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
+                    pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
                     iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int), bits: int,
                     weight: float, first: int, band_first: int,
                     # outputs
@@ -259,7 +259,7 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
                     shaded[0] = shaded[0] + 1
                     color = color + visible_radiance(view, geo, sh, iv_e[i], o, d, ti, n_shade_max, lights_static,
                                                      bits, masks, row, 2 * words)
-    color = color + dome * (float(bits - covered) / float(bits))
+    color = color + sh.dome * (float(bits - covered) / float(bits))
     rgba[pix, 0] = rgba[pix, 0] + weight * color[0]
     rgba[pix, 1] = rgba[pix, 1] + weight * color[1]
     rgba[pix, 2] = rgba[pix, 2] + weight * color[2]
@@ -268,7 +268,7 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
 
 @wp.kernel(enable_backward=False)
 def resolve_exact(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_max: int, lights_static: int,
-                  dome: wp.vec3, pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
+                  pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
                   iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int),
                   weight: float, first: int, max_events: int,
                   # outputs
@@ -327,7 +327,7 @@ def resolve_exact(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_
             nxt = wp.min(tau + 1.0e-7, 1.0)
         if front != run_front:
             # the run of spans with one front ends: its radiance is integrated over the whole run
-            color = color + run_color(view, geo, sh, dome, o, d, iv_t, iv_e, run_front, run_start, tau, n_shade_max,
+            color = color + run_color(view, geo, sh, o, d, iv_t, iv_e, run_front, run_start, tau, n_shade_max,
                                       lights_static, shaded)
             run_front = front
             run_start = tau
@@ -338,17 +338,17 @@ def resolve_exact(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_
         if events >= max_events and tau < 1.0:
             # keep the front surface for the rest (counted: never silent)
             wp.atomic_add(truncated, 0, 1)
-            color = color + run_color(view, geo, sh, dome, o, d, iv_t, iv_e, run_front, run_start, tau, n_shade_max,
+            color = color + run_color(view, geo, sh, o, d, iv_t, iv_e, run_front, run_start, tau, n_shade_max,
                                       lights_static, shaded)
             if front >= 0:
                 color = color + span_mean(view, geo, sh, iv_e[front], o, d, iv_t[front], tau, tau, n_shade_max,
                                           lights_static) * (1.0 - tau)
                 cover = cover + (1.0 - tau)
             else:
-                color = color + dome * (1.0 - tau)
+                color = color + sh.dome * (1.0 - tau)
             run_start = 1.0
             tau = 1.0
-    color = color + run_color(view, geo, sh, dome, o, d, iv_t, iv_e, run_front, run_start, 1.0, n_shade_max,
+    color = color + run_color(view, geo, sh, o, d, iv_t, iv_e, run_front, run_start, 1.0, n_shade_max,
                               lights_static, shaded)
     rgba[pix, 0] = rgba[pix, 0] + weight * color[0]
     rgba[pix, 1] = rgba[pix, 1] + weight * color[1]
