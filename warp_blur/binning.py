@@ -48,11 +48,45 @@ def entry_pixel_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np
     lo = r.min(axis=0) - margin
     hi = r.max(axis=0) + margin
     box = np.concatenate([lo, hi], axis=1)
+    still = crosses & (entry_k0 == entry_k1)
+    if still.any():
+        # a still entry crossing the near plane: the box of its part in front of the plane
+        box[still] = clipped_triangle_boxes(proj, pts[:3, still], margin)
+        crosses = crosses & ~still
     box[crosses] = (-margin, -margin, proj.width + margin, proj.height + margin)
     finite = np.isfinite(box).all(axis=1)
     box[~finite] = (-margin, -margin, proj.width + margin, proj.height + margin)
     keep &= (box[:, 2] >= 0) & (box[:, 0] <= proj.width) & (box[:, 3] >= 0) & (box[:, 1] <= proj.height)
     return box, keep
+
+
+def clipped_triangle_boxes(proj: Projection, tri: np.ndarray, margin: float) -> np.ndarray:
+    """Pixel boxes (N, 4) of triangles (3, N, 3) (camera space, perspective) clipped to the near
+    plane: the projections of their vertices in front of it and of their edges' crossings of it.
+    A triangle crossing the plane of a shadow cube face or of a camera above a ground plane would
+    otherwise get the whole screen, and every tile would test it."""
+    depth = -tri[..., 2]                                                   # (3, N)
+    cand = [tri[i] for i in range(3)]
+    ok = [depth[i] >= proj.near for i in range(3)]
+    for i, j in ((0, 1), (1, 2), (2, 0)):
+        di, dj = depth[i] - proj.near, depth[j] - proj.near
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            s = di / (di - dj)
+            cand.append(tri[i] + s[:, None] * (tri[j] - tri[i]))
+        ok.append((di * dj < 0) & np.isfinite(s))
+    pts = np.stack(cand)                                                   # (6, N, 3)
+    valid = np.stack(ok)                                                   # (6, N)
+    # a crossing lies on the plane: give it the plane's depth exactly (no division by ~0)
+    pts[3:, :, 2] = np.where(valid[3:], -max(proj.near, 1e-30), pts[3:, :, 2])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = proj.project(pts)                                              # (6, N, 2)
+    valid &= np.isfinite(r).all(axis=-1)
+    lo = np.where(valid[..., None], r, np.inf).min(axis=0) - margin
+    hi = np.where(valid[..., None], r, -np.inf).max(axis=0) + margin
+    box = np.concatenate([lo, hi], axis=1)
+    full = ~np.isfinite(box).all(axis=1)
+    box[full] = (-margin, -margin, proj.width + margin, proj.height + margin)
+    return box
 
 
 def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size: int = TILE_SIZE) -> TileBins:
