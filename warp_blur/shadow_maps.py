@@ -424,12 +424,12 @@ class ShadowMaps:
             lay.light_still = all(np.array_equal(self.sample(p).lights[lay.row], target.lights[lay.row])
                                   for p in STILL_PROBES)
         if lay.static or not lay.light_still:
-            depth = self._render_face(lay, face, m, target)[0].numpy().reshape(s, s)
+            depth = self._render_over(lay, face, m, target, None, None)
         else:
             still = self._still_triangles()
             key = (lay.row, m, fi)
             if key not in self._bases:
-                self._bases[key] = self._render_face(lay, face, m, target, still)[0].numpy().reshape(s, s)
+                self._bases[key] = self._render_over(lay, face, m, target, still, None)
                 self._count("shadow_maps_still_base", 1)
             depth = self._bases[key]
             if not still.all():
@@ -438,13 +438,19 @@ class ShadowMaps:
         self._count("shadow_maps_rendered", 1)
         return depth
 
-    def _render_over(self, lay: LightLayout, face: Face, m: int, s: Sample, subset: np.ndarray,
-                     base: np.ndarray) -> np.ndarray:
-        """Depth (S, S) of the visible triangles of `subset` ((T,) mask) rendered over `base` (the
-        nearer wins), each triangle splatted over its own box (atomic min: order-free)."""
+    def _render_over(self, lay: LightLayout, face: Face, m: int, s: Sample, subset: np.ndarray | None,
+                     base: np.ndarray | None) -> np.ndarray:
+        """Depth (S, S) of the visible triangles (of `subset`, a (T,) mask, when given) rendered
+        over `base` (the nearer wins; None: an empty map), each triangle splatted over its own box
+        (atomic min: order-free). Depth-only maps are splatted rather than gathered per texel: a
+        texel then tests the triangles that cover it, not its tile's whole list (1.75x faster on
+        demo's maps, the same depths)."""
         view, geo, b, kept = self._face_scene(lay, face, m, s, subset, tiles=False)
-        entries = wp.array(kept.astype(np.int32), dtype=int, device=self.device)
-        depth = wp.array(base.ravel(), dtype=float, device=self.device)
+        entries = device_array(kept.astype(np.int32), int, self.device)
+        if base is None:
+            depth = wp.full(self.size * self.size, wp.inf, dtype=float, device=self.device)
+        else:
+            depth = wp.array(base.ravel(), dtype=float, device=self.device)
         launch_row_bands(splat_shadow_depth, len(kept), self.size,
                          lambda y0, y1: [view, geo, b, entries, y0, y1, depth], self.device, self.threads)
         return depth.numpy().reshape(self.size, self.size)
