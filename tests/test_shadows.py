@@ -9,6 +9,7 @@ from scenes import shadow_stage
 
 import warp_blur as wb
 from warp_blur.metrics import max_abs, rmse
+from warp_blur import shadow_maps
 from warp_blur.shadow_maps import fit_faces, light_frame, sample_pattern
 
 RES = (128, 96)
@@ -163,11 +164,26 @@ def test_shadow_enable_false_casts_none_and_costs_nothing(scene_path):
     assert rmse(on.rgba, result.rgba) > 0.01   # the shadow was real where enabled
 
 
-def test_auto_mode_renders_directly_except_for_accumulation(scene_path):
+def test_auto_mode_warps_only_where_measured_cheaper(scene_path, monkeypatch):
+    """--shadows auto weighs the light's first rendered map against the cost of warping, per
+    light and frame, never by method: on this small stage rendering wins for every method, and
+    accumulation's 16 instants share 8 rendered map instants, equal to direct maps there."""
     path = shadow_stage(scene_path(), occluder_samples=MOVING)
-    assert render(path, "analytic").stats["shadow_mode"] == "direct"
+    ana = render(path, "analytic")
+    assert ana.stats["shadow_mode"] == "auto" and ana.stats["shadow_warped_lights"] == [0]
     acc = render(path, "accumulation", samples=16)
-    assert acc.stats["shadow_mode"] == "warped" and acc.stats["shadow_maps_warped"] == 8   # shared instants
+    assert acc.stats["shadow_warped_lights"] == [0] and acc.stats["shadow_maps_rendered"] == 8
+    assert "shadow_maps_warped" not in acc.stats
+    # per-instant maps (instants <= shadow times): auto equals direct exactly
+    few = render(path, "accumulation", samples=4)
+    assert np.array_equal(few.rgba, render(path, "accumulation", samples=4, shadows="direct").rgba)
+    # were warping (nearly) free, the same measurement would choose it
+    monkeypatch.setattr(shadow_maps, "WARP_SECONDS_PER_TEXEL", 1e-15)
+    monkeypatch.setattr(shadow_maps, "KEY_MAP_COST", 0.0)
+    cheap = render(path, "accumulation", samples=16)
+    # (the light holds still: its first map pays the still base, so the second one decides)
+    assert cheap.stats["shadow_warped_lights"] == [1] and cheap.stats["shadow_maps_warped"] == 6
+    assert cheap.stats["shadow_maps_rendered"] == 2
 
 
 def test_static_shadows_are_rendered_once(scene_path):

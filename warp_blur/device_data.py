@@ -77,6 +77,31 @@ def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.nda
     return g
 
 
+def instant_frames(lights: np.ndarray, times: int) -> np.ndarray:
+    """(NL * B, 12) float32: each light's local axes (rows x, y, z) and origin in camera space at
+    map instant b = (b + 0.5) / B, from the tables at knots over the shutter (L+1, NL, W), read
+    as the kernels read them (light_table.light_value, shadow_lookup.light_axes)."""
+    segments = lights.shape[0] - 1
+    nl = lights.shape[1]
+    out = np.zeros((max(nl * times, 1), 12), np.float32)
+    for b in range(times):
+        u = (b + 0.5) / times
+        if segments == 0:
+            row = lights[0].astype(np.float32)
+        else:
+            x = min(max(u, 0.0), 1.0) * segments
+            k = min(int(x), segments - 1)
+            f = np.float32(x - k)
+            row = lights[k].astype(np.float32) * (np.float32(1) - f) + lights[k + 1].astype(np.float32) * f
+        for j in range(nl):
+            ax = row[j, 10:13] / max(np.linalg.norm(row[j, 10:13]), 1e-30)
+            ay = row[j, 13:16] - np.dot(row[j, 13:16], ax) * ax
+            ay = ay / max(np.linalg.norm(ay), 1e-30)
+            out[j * times + b, 0:9] = np.concatenate([ax, ay, np.cross(ax, ay)])
+            out[j * times + b, 9:12] = row[j, 4:7]
+    return out
+
+
 def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, device: str,
                  shadows=None, options=None) -> Shading:
     """lights: (L+1, NL, LIGHT_WIDTH) tables at L+1 knots over the shutter; shadows: a
@@ -92,27 +117,59 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
     # per light: first map (-1 = no shadow), light samples, faces, 1 when the light holds still
     # over the shutter (its maps' texel flags then tell where a time span needs one lookup)
     if shadows is None:
-        s.shadow_maps = wp.zeros((1, 1, 1), dtype=float, device=device)
+        s.shadow_maps = wp.zeros((1, 1, 1, 1), dtype=float, device=device)
         s.shadow_varying = wp.zeros((1, 1, 1), dtype=wp.uint8, device=device)
         s.shadow_faces = wp.zeros((1, FACE_WIDTH), dtype=float, device=device)
         info = np.full((max(nl, 1), 4), -1, np.int32)
         s.shadow_lights = wp.array(info, dtype=int, device=device)
         s.shadow_times, s.shadow_size = 1, 1
+        s.shadow_frames = wp.zeros((1, 12), dtype=float, device=device)
     else:
-        s.shadow_maps = wp.array(shadows.maps, dtype=float, device=device)
-        varying = shadows.varying if shadows.varying is not None else np.ones((1, 1, 1), np.uint8)
-        s.shadow_varying = wp.array(varying, dtype=wp.uint8, device=device)
-        s.shadow_faces = wp.array(shadows.faces, dtype=float, device=device)
+        # maps shared by many instants (accumulation) are uploaded once, not once per instant
+        cached = shadows.device_arrays.get(device)
+        if cached is None:
+            maps, faces, varying, slot_lights = face_slots(shadows)
+            varying = varying if varying is not None else np.ones((1, 1, 1), np.uint8)
+            cached = (wp.array(maps, dtype=float, device=device), wp.array(varying, dtype=wp.uint8, device=device),
+                      wp.array(faces, dtype=float, device=device), slot_lights)
+            shadows.device_arrays[device] = cached
+        s.shadow_maps, s.shadow_varying, s.shadow_faces, slot_lights = cached
         info = np.zeros((len(shadows.lights), 4), np.int32)
-        info[:, :3] = shadows.lights
+        info[:, :3] = slot_lights
         if shadows.varying is not None:
             info[:nl, 3] = (lt == lt[:1]).all(axis=(0, 2))[:nl]
         s.shadow_lights = wp.array(info, dtype=int, device=device)
         s.shadow_times, s.shadow_size = shadows.times, shadows.size
+        s.shadow_frames = wp.array(instant_frames(lt, shadows.times), dtype=float, device=device)
     s.shadow_bias = float(options.bias) if options is not None else 1.0
     s.shadow_normal_bias = float(options.normal_bias) if options is not None else 1.5
     s.shadow_pcf = int(options.pcf) if options is not None else 0
     return s
+
+
+def face_slots(data) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+    """The kernels' layout of a frame's maps (a shadow_maps.ShadowData): (maps (slots, S, S, B) float32 with each face's B
+    instants side by side, faces (slots, FACE_WIDTH), varying (slots, S, S) uint8 or None, lights
+    (NL, 3) [first slot or -1, samples, faces]); slot first + m F + f is sample m, face f."""
+    b, s = data.times, data.size
+    slots = sum(int(m * f) for first, m, f in data.lights if first >= 0)
+    maps = np.empty((max(slots, 1), s, s, b), np.float32)
+    faces = np.zeros((max(slots, 1), data.faces.shape[1]), np.float32)
+    varying = np.zeros((max(slots, 1), s, s), np.uint8) if data.varying is not None else None
+    lights = data.lights.copy()
+    k = 0
+    for j, (first, m, f) in enumerate(data.lights):
+        if first < 0:
+            continue
+        n = m * b * f
+        block = data.maps[first:first + n].reshape(m, b, f, s, s)
+        maps[k:k + m * f] = block.transpose(0, 2, 3, 4, 1).reshape(m * f, s, s, b)
+        faces[k:k + m * f] = data.faces[first:first + n].reshape(m, b, f, -1)[:, 0].reshape(m * f, -1)
+        if varying is not None:
+            varying[k:k + m * f] = data.varying[first:first + n].reshape(m, b, f, s, s)[:, 0].reshape(m * f, s, s)
+        lights[j, 0] = k
+        k += m * f
+    return maps, faces, varying, lights
 
 
 def make_bins(bins: TileBins, device: str) -> Bins:

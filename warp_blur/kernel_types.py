@@ -51,12 +51,12 @@ class Geometry:
 class Shading:
     """Materials (M, 12), lights at L+1 knots (L+1, NL, 18), the dome radiance, and shadow maps.
 
-    Shadow maps (see shadow_lookup.py): shadow_maps (num_maps, S, S) depth along each face's view
-    axis; shadow_faces (num_maps, FACE_WIDTH) face_from_cam rotation rows, translation, window,
-    ortho flag; shadow_lights (NL, 4) per light: first map (-1 = casts no shadow), light samples M,
-    faces F, 1 when the light holds still (then shadow_varying (num_maps, S, S) flags the texels
-    whose depth changes over the maps' instants). Map of light j, sample m, time b, face f:
-    first + (m * shadow_times + b) * F + f, time b being shutter time (b + 0.5) / shadow_times.
+    Shadow maps (see shadow_lookup.py): shadow_maps (slots, S, S, B) depth along each face's
+    view axis at the B = shadow_times map instants (instant b at shutter time (b + 0.5) / B);
+    shadow_faces (slots, FACE_WIDTH) face rotation rows, light-sample offset, window, ortho flag;
+    shadow_lights (NL, 4) per light: first slot (-1 = casts no shadow), light samples M, faces F,
+    1 when the light holds still (then shadow_varying (slots, S, S) flags the texels whose depth
+    changes over the instants). Light j's sample m, face f is slot first + m * F + f.
     """
 
     materials: wp.array2d(dtype=float)
@@ -64,10 +64,11 @@ class Shading:
     num_lights: int
     light_segments: int
     dome: wp.vec3
-    shadow_maps: wp.array3d(dtype=float)
+    shadow_maps: wp.array4d(dtype=float)
     shadow_varying: wp.array3d(dtype=wp.uint8)
     shadow_faces: wp.array2d(dtype=float)
     shadow_lights: wp.array2d(dtype=int)
+    shadow_frames: wp.array2d(dtype=float)   # (NL * B, 12) light j's axes rows and origin at map instant b (row j B + b)
     shadow_times: int
     shadow_size: int
     shadow_bias: float         # depth bias, in texels (world size of a texel at the receiver)

@@ -185,9 +185,7 @@ class RenderSettings:
 
     @property
     def resolved_shadows(self) -> str:
-        if self.shadows != "auto":
-            return self.shadows
-        return "warped" if self.method == "accumulation" else "direct"
+        return self.shadows
 
     @property
     def resolved_seed(self) -> int:

@@ -7,7 +7,11 @@ face's rotation in the light's local frame (rows 0-8), the light sample's offset
 (9-11), the window (12-15: x0, y0, x1, y1 on the plane at distance 1, or in scene units when
 orthographic), the ortho flag (16) and the near depth (17). face_from_cam is built at the lookup's
 own time from the light table (the light's frame in camera space then), so a moving camera never
-shifts a shadow: maps are rigid with the light. Texel (i, j) of an S×S face covers window x in
+shifts a shadow: maps are rigid with the light.
+
+Layout: a light's face slot (first + m F + f for sample m, face f) holds the depths of all its
+map instants side by side, shadow_maps[slot, y, x, b], so a lookup between two instants, and the
+lookups of neighbouring samples at other times, read the same cache lines. Texel (i, j) of an S×S face covers window x in
 [x0 + i (x1-x0)/S, ...], y measured downwards from y1, as camera pixels are.
 
 Comparisons are averaged, never depths: a light's visibility at time u is the PCF comparison
@@ -43,34 +47,45 @@ def face_rotation(sh: Shading, f: int) -> wp.mat33:
 
 
 @wp.func
-def texel_lit(sh: Shading, f: int, i: int, j: int, depth: float) -> float:
+def texel_lit(sh: Shading, f: int, i: int, j: int, b0: int, b1: int, frac: float, depth: float) -> float:
+    """Depth comparison at texel (i, j) of face slot f, blended between map instants b0 and b1
+    (weight frac of b1; the two are adjacent in memory)."""
     s = sh.shadow_size
     ii = wp.clamp(i, 0, s - 1)
     jj = wp.clamp(j, 0, s - 1)
-    if depth <= sh.shadow_maps[f, jj, ii]:
-        return 1.0
-    return 0.0
+    lit = float(0.0)
+    if depth <= sh.shadow_maps[f, jj, ii, b0]:
+        lit = 1.0
+    if frac > 0.0:
+        lit1 = float(0.0)
+        if depth <= sh.shadow_maps[f, jj, ii, b1]:
+            lit1 = 1.0
+        lit = lit + frac * (lit1 - lit)
+    return lit
 
 
 @wp.func
-def face_coords(sh: Shading, f: int, axes: wp.mat33, origin: wp.vec3, p: wp.vec3, n: wp.vec3) -> wp.vec4:
-    """(texel x, texel y, biased depth, 1) of camera-space point p (normal n, facing the light) in
-    face f of a light whose frame is (axes, origin); w = 0 when p is outside the face. Texel
-    coordinates are continuous, texel centres at integers (bilinear taps at floor and floor + 1)."""
-    a = face_rotation(sh, f) * axes
-    sample = origin + wp.transpose(axes) * wp.vec3(sh.shadow_faces[f, 9], sh.shadow_faces[f, 10], sh.shadow_faces[f, 11])
-    q = a * (p - sample)
-    depth = -q[2]
-    x0 = sh.shadow_faces[f, 12]
-    y0 = sh.shadow_faces[f, 13]
-    x1 = sh.shadow_faces[f, 14]
-    y1 = sh.shadow_faces[f, 15]
-    ortho = sh.shadow_faces[f, 16] > 0.5
+def face_coords(sh: Shading, f: int, pl: wp.vec3, nl: wp.vec3) -> wp.vec4:
+    """(texel x, texel y, biased depth, 1) of a receiver point pl with normal nl (facing the
+    light), both in the light's local frame (light_local), in face f; w = 0 when the point is
+    outside the face. Texel coordinates are continuous, texel centres at integers (bilinear taps
+    at floor and floor + 1)."""
+    r = sh.shadow_faces
+    rel = pl - wp.vec3(r[f, 9], r[f, 10], r[f, 11])
+    # depth first: a cube face behind the point is rejected before the rest of the transform
+    depth = -(r[f, 6] * rel[0] + r[f, 7] * rel[1] + r[f, 8] * rel[2])
+    ortho = r[f, 16] > 0.5
+    if not ortho and depth <= r[f, 17]:
+        return wp.vec4(0.0, 0.0, 0.0, 0.0)
+    a = face_rotation(sh, f)
+    q = a * rel
+    x0 = r[f, 12]
+    y0 = r[f, 13]
+    x1 = r[f, 14]
+    y1 = r[f, 15]
     wx = q[0]
     wy = q[1]
     if not ortho:
-        if depth <= sh.shadow_faces[f, 17]:
-            return wp.vec4(0.0, 0.0, 0.0, 0.0)
         wx = q[0] / depth
         wy = q[1] / depth
     if wx < x0 or wx > x1 or wy < y0 or wy > y1:
@@ -80,7 +95,7 @@ def face_coords(sh: Shading, f: int, axes: wp.mat33, origin: wp.vec3, p: wp.vec3
     if not ortho:
         texel = texel * depth
     # normal offset, then a constant bias, both in texels at the receiver
-    qn = q + (a * n) * (sh.shadow_normal_bias * texel)
+    qn = q + (a * nl) * (sh.shadow_normal_bias * texel)
     depth = -qn[2] - sh.shadow_bias * texel
     wx = qn[0]
     wy = qn[1]
@@ -92,10 +107,11 @@ def face_coords(sh: Shading, f: int, axes: wp.mat33, origin: wp.vec3, p: wp.vec3
 
 
 @wp.func
-def face_visibility(sh: Shading, f: int, axes: wp.mat33, origin: wp.vec3, p: wp.vec3, n: wp.vec3) -> float:
-    """Visibility of camera-space point p (normal n, facing the light) in face f of a light whose
-    frame is (axes, origin): in [0, 1], or -1 when p is outside the face (try the next face)."""
-    c = face_coords(sh, f, axes, origin, p, n)
+def face_visibility(sh: Shading, f: int, b0: int, b1: int, frac: float, pl: wp.vec3, nl: wp.vec3) -> float:
+    """Visibility of light-local point pl (normal nl, facing the light) in face slot f, at map
+    instant b0 blended with b1 by frac (frac 0: b0 alone): in [0, 1], or -1 when the point is
+    outside the face (try the next face)."""
+    c = face_coords(sh, f, pl, nl)
     if c[3] == 0.0:
         return -1.0
     depth = c[2]
@@ -109,18 +125,18 @@ def face_visibility(sh: Shading, f: int, axes: wp.mat33, origin: wp.vec3, p: wp.
             j = int(wp.floor(fy))
             ax = fx - float(i)
             ay = fy - float(j)
-            total += (1.0 - ax) * (1.0 - ay) * texel_lit(sh, f, i, j, depth)
-            total += ax * (1.0 - ay) * texel_lit(sh, f, i + 1, j, depth)
-            total += (1.0 - ax) * ay * texel_lit(sh, f, i, j + 1, depth)
-            total += ax * ay * texel_lit(sh, f, i + 1, j + 1, depth)
+            total += (1.0 - ax) * (1.0 - ay) * texel_lit(sh, f, i, j, b0, b1, frac, depth)
+            total += ax * (1.0 - ay) * texel_lit(sh, f, i + 1, j, b0, b1, frac, depth)
+            total += (1.0 - ax) * ay * texel_lit(sh, f, i, j + 1, b0, b1, frac, depth)
+            total += ax * ay * texel_lit(sh, f, i + 1, j + 1, b0, b1, frac, depth)
     return total / float((2 * r + 1) * (2 * r + 1))
 
 
 @wp.func
-def face_steady(sh: Shading, f: int, axes: wp.mat33, origin: wp.vec3, p: wp.vec3, n: wp.vec3) -> int:
-    """1 when p's lookup in face f reads only texels whose depth is the same at every instant,
-    0 when one varies, -1 when p is outside the face."""
-    c = face_coords(sh, f, axes, origin, p, n)
+def face_steady(sh: Shading, f: int, pl: wp.vec3, nl: wp.vec3) -> int:
+    """1 when the lookup of light-local point pl in face f reads only texels whose depth is the
+    same at every instant, 0 when one varies, -1 when the point is outside the face."""
+    c = face_coords(sh, f, pl, nl)
     if c[3] == 0.0:
         return -1
     s = sh.shadow_size
@@ -143,11 +159,12 @@ def light_steady(sh: Shading, j: int, u: float, p: wp.vec3, n: wp.vec3) -> bool:
     first = sh.shadow_lights[j, 0]
     num_faces = sh.shadow_lights[j, 2]
     axes = light_axes(sh, j, u)
-    origin = light_vec(sh, j, 4, u)
+    pl = axes * (p - light_vec(sh, j, 4, u))
+    nl = axes * n
     for m in range(sh.shadow_lights[j, 1]):
-        base = first + m * sh.shadow_times * num_faces
+        base = first + m * num_faces
         for f in range(num_faces):
-            st = face_steady(sh, base + f, axes, origin, p, n)
+            st = face_steady(sh, base + f, pl, nl)
             if st == 0:
                 return False
             if st == 1:
@@ -156,15 +173,26 @@ def light_steady(sh: Shading, j: int, u: float, p: wp.vec3, n: wp.vec3) -> bool:
 
 
 @wp.func
-def map_visibility(sh: Shading, first_face: int, num_faces: int, axes: wp.mat33, origin: wp.vec3, p: wp.vec3,
-                   n: wp.vec3) -> float:
-    """Visibility in the first face of a map that contains p (lit when none does: nothing that
-    casts a shadow was there)."""
+def map_visibility(sh: Shading, first_face: int, num_faces: int, b0: int, b1: int, frac: float, pl: wp.vec3,
+                   nl: wp.vec3) -> float:
+    """Visibility of light-local point pl (normal nl) in the first face of a light sample's map
+    that contains it, at instant b0 blended with b1 by frac (lit when no face contains it:
+    nothing that casts a shadow was there)."""
     for f in range(num_faces):
-        v = face_visibility(sh, first_face + f, axes, origin, p, n)
+        v = face_visibility(sh, first_face + f, b0, b1, frac, pl, nl)
         if v >= 0.0:
             return v
     return 1.0
+
+
+@wp.func
+def instant_frame(sh: Shading, j: int, b: int):
+    """(axes, origin) of light j at map instant b (times > 1), as light_axes and light_vec give
+    them at that instant (tabled by the host: one row of 12 per light and instant)."""
+    r = sh.shadow_frames
+    k = j * sh.shadow_times + b
+    return (wp.mat33(r[k, 0], r[k, 1], r[k, 2], r[k, 3], r[k, 4], r[k, 5], r[k, 6], r[k, 7], r[k, 8]),
+            wp.vec3(r[k, 9], r[k, 10], r[k, 11]))
 
 
 @wp.func
@@ -198,22 +226,37 @@ def light_visibility_at(sh: Shading, j: int, u: float, p: wp.vec3, vel: wp.vec3,
     t0 = map_instant(sh, b0, u)
     t1 = map_instant(sh, b1, u)
     blend = frac > 0.0 and b1 != b0
-    axes0 = light_axes(sh, j, t0)
-    origin0 = light_vec(sh, j, 4, t0)
-    axes1 = axes0
-    origin1 = origin0
-    if blend and sh.shadow_lights[j, 3] != 1:   # a light that holds still has one frame
-        axes1 = light_axes(sh, j, t1)
-        origin1 = light_vec(sh, j, 4, t1)
-    p0 = p + (t0 - u) * vel
-    p1 = p + (t1 - u) * vel
+    axes0 = wp.mat33()
+    origin0 = wp.vec3()
+    axes1 = wp.mat33()
+    origin1 = wp.vec3()
+    if times > 1:   # the light's frame at each map instant, tabled on the host
+        axes0, origin0 = instant_frame(sh, j, b0)
+        axes1, origin1 = instant_frame(sh, j, b1)
+    else:
+        axes0 = light_axes(sh, j, t0)
+        origin0 = light_vec(sh, j, 4, t0)
+        axes1 = axes0
+        origin1 = origin0
+    # the receiver in the light's frame at each map's instant, once for all samples and faces
+    pl0 = axes0 * (p + (t0 - u) * vel - origin0)
+    nl0 = axes0 * n
+    pl1 = axes1 * (p + (t1 - u) * vel - origin1)
+    nl1 = axes1 * n
+    # the same point in both maps (a light that holds still, a receiver that does): one pass
+    # reads both instants' texels, which sit side by side
+    together = blend and pl0 == pl1
     total = float(0.0)
     for m in range(num_samples):
-        v = map_visibility(sh, first + (m * times + b0) * num_faces, num_faces, axes0, origin0, p0, n)
-        if blend:
-            v1 = map_visibility(sh, first + (m * times + b1) * num_faces, num_faces, axes1, origin1, p1, n)
-            v = v + frac * (v1 - v)
-        total += v
+        slot = first + m * num_faces
+        if together:
+            total += map_visibility(sh, slot, num_faces, b0, b1, frac, pl0, nl0)
+        else:
+            v = map_visibility(sh, slot, num_faces, b0, b0, 0.0, pl0, nl0)
+            if blend:
+                v1 = map_visibility(sh, slot, num_faces, b1, b1, 0.0, pl1, nl1)
+                v = v + frac * (v1 - v)
+            total += v
     return total / float(num_samples)
 
 

@@ -26,7 +26,7 @@ so what one key hides the other shows. Depths are compared after warping, never 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -48,6 +48,13 @@ JUMP_CELLS = 8.0
 MAX_FRUSTUM_HALF_ANGLE_COS = 0.5
 #: tile size (texels) of the warped triangles' bins: small, since control-point cells are small
 WARP_TILE = 8
+#: cost of warping one texel of a map (host-side mesh and gather kernel, seconds), measured by
+#: bench/bench_shadows.py on this project's 2-core machine; replaced by this process's own
+#: measurement once it has warped a map. `--shadows auto` weighs it against the measured cost of
+#: rendering the light's first map directly.
+WARP_SECONDS_PER_TEXEL = 3.5e-7
+#: a key map (depth, triangle and barycentrics gathered per texel) costs this many direct maps
+KEY_MAP_COST = 1.75
 #: shutter instants at which a triangle must hold still to render once into a static base map
 #: (the motion planner's probes; a vertex is still when it is identical at all of them)
 STILL_PROBES = (0.0, 0.1234, 0.25, 0.5, 0.618, 0.75, 1.0)
@@ -55,7 +62,8 @@ STILL_PROBES = (0.0, 0.1234, 0.25, 0.5, 0.618, 0.75, 1.0)
 
 @dataclass(frozen=True)
 class ShadowOptions:
-    """mode: warped | direct | off; size: texels per face side; grid: control-point cells per side;
+    """mode: auto | warped | direct | off (auto: per light, warped only where it is measured
+    cheaper than direct maps for this frame); size: texels per face side; grid: control-point cells per side;
     times: map instants over the shutter for the time-continuous methods; keys: most key maps per
     light (warped); light_samples: samples of an area light; bias, normal_bias: texels; pcf:
     filter radius in texels; memory_mb: budget of one frame's maps."""
@@ -106,6 +114,7 @@ class LightLayout:
     faces: list[Face]
     static: bool = True                # nothing moves in the light's view: one map serves the shutter
     light_still: bool | None = None    # the light holds still over the shutter (found when needed)
+    warp: bool | None = None           # auto mode: maps warped (True) or rendered (False), once decided
 
 
 @dataclass
@@ -138,6 +147,7 @@ class ShadowData:
     times: int
     size: int
     varying: np.ndarray | None = None
+    device_arrays: dict = field(default_factory=dict)   # device -> (maps, varying, faces) uploaded
 
 
 def varying_texels(maps: np.ndarray, lights: np.ndarray, times: int) -> np.ndarray:
@@ -302,6 +312,7 @@ class ShadowMaps:
         self._bases: dict[tuple[int, int, int], np.ndarray] = {}
         self.size = options.size
         self.layouts: list[LightLayout] = []
+        self._warp_seconds_per_texel = WARP_SECONDS_PER_TEXEL
         centre = self.sample(0.5)
         self.num_lights = len(centre.lights)
         if options.mode == "off" or len(tri_vertices) == 0:
@@ -662,6 +673,7 @@ class ShadowMaps:
                     device_array(bins.tile_entries.astype(np.int32), int, dev)]
             launch_pixels(warp_texels, s * s, lambda first, _n: args + [first, out], dev, self.threads)
             self._add_time("shadow_warp", time.perf_counter() - t0)
+            self._warp_seconds_per_texel = (time.perf_counter() - t0) / (s * s)
         return out.numpy().reshape(s, s)
 
     # ------------------------------------------------------------------------------ assembly
@@ -672,9 +684,9 @@ class ShadowMaps:
             return None
         if self.static:
             if self._static_data is None:
-                self._static_data = self._build([0.5], direct=True)
+                self._static_data = self._build([0.5], direct=True, frame_instants=1)
             return self._static_data
-        return self._build(times, direct=self.options.mode == "direct")
+        return self._build(times, direct=self.options.mode == "direct", frame_instants=len(times))
 
     def data_for_instant(self, u: float, num_instants: int, requested_times: int) -> ShadowData | None:
         """Maps for a sharp instant u of a frame shading `num_instants` instants. Direct mode (the
@@ -682,13 +694,24 @@ class ShadowMaps:
         more instants than `requested_times`, warps maps once at those instants and every instant
         interpolates their comparisons (as stochastic and analytic do)."""
         if not self.active or self.static or self.options.mode == "direct" or num_instants <= requested_times:
-            return self.data([u])
+            if not self.active or self.static:
+                return self.data([u])
+            return self._build([u], direct=self.options.mode == "direct", frame_instants=num_instants)
         if self._binned is None:
             b = self.times_for(requested_times)
             self._binned = self.data([(i + 0.5) / b for i in range(b)])
         return self._binned
 
-    def _build(self, times: list[float], direct: bool) -> ShadowData:
+    def _warp_pays(self, lay: LightLayout, map_seconds: float, remaining_maps: int) -> bool:
+        """Auto mode: True when warping the light's remaining maps of the frame (after paying for
+        its key maps) is cheaper than rendering them as the first one was rendered (map_seconds)."""
+        keys = 2 * len(lay.faces) * len(lay.offsets)   # open and close at least
+        warped = keys * KEY_MAP_COST * map_seconds + remaining_maps * self.size ** 2 * self._warp_seconds_per_texel
+        return remaining_maps * map_seconds > warped
+
+    def _build(self, times: list[float], direct: bool, frame_instants: int) -> ShadowData:
+        """Maps at `times` (B shutter instants); frame_instants: how many instants the frame
+        builds maps for in all (auto mode weighs warping against rendering over all of them)."""
         t_start = time.perf_counter()
         s = self.size
         total = sum(len(lay.offsets) * len(lay.faces) for lay in self.layouts) * len(times)
@@ -698,14 +721,30 @@ class ShadowMaps:
         idx = 0
         for lay in self.layouts:
             info[lay.row] = (idx, len(lay.offsets), len(lay.faces))
-            keys = None if (direct or lay.static) else self._key_times(lay)
+            if direct or lay.static:
+                lay.warp = False
+            elif self.options.mode == "warped":
+                lay.warp = True
+            keys = self._key_times(lay) if lay.warp else None
+            rendered = 0
             if keys is not None:
                 self.counters["shadow_keys"] = max(self.counters.get("shadow_keys", 0), len(keys))
             for m in range(len(lay.offsets)):
                 for u in times:
                     for fi, face in enumerate(lay.faces):
                         if keys is None:
+                            t0 = time.perf_counter()
+                            bases = self.counters.get("shadow_maps_still_base", 0)
                             maps[idx] = self._direct_depth(lay, fi, m, u)
+                            rendered += 1
+                            # auto: the light's first map decides (the first over a still base
+                            # rendered beforehand: the base is paid once, whatever the mode)
+                            if lay.warp is None and bases == self.counters.get("shadow_maps_still_base", 0):
+                                n = frame_instants * len(lay.offsets) * len(lay.faces) - rendered
+                                lay.warp = self._warp_pays(lay, time.perf_counter() - t0, n)
+                                self.counters.setdefault("shadow_warped_lights", []).append(int(lay.warp))
+                                if lay.warp:
+                                    keys = self._key_times(lay)
                         else:
                             maps[idx] = self._warp_face(lay, fi, m, u, keys)
                             self._count("shadow_maps_warped", 1)
