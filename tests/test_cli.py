@@ -38,7 +38,8 @@ def test_output_patterns():
 
 
 @pytest.mark.parametrize("case", ["missing", "no_camera", "bad_frames", "bad_resolution", "zero_resolution",
-                                  "syntax", "time_bits_wrong_method", "bad_camera"])
+                                  "syntax", "time_bits_wrong_method", "bad_camera", "not_utf8", "fifo",
+                                  "usdz_not_zip", "directory"])
 def test_user_errors_exit_2_with_one_line_and_no_output(tmp_path, scene_path, case):
     from authoring import new_stage
     good = emissive_quad_stage(scene_path())
@@ -61,6 +62,20 @@ def test_user_errors_exit_2_with_one_line_and_no_output(tmp_path, scene_path, ca
         p = tmp_path / "broken.usda"
         p.write_text("#usda 1.0\ndef Xform \"W\" {\n  float x = \n")
         args[1] = str(p)
+    elif case == "not_utf8":
+        p = tmp_path / "bytes.usda"
+        p.write_bytes(b'#usda 1.0\ndef Xform "W\xff\xfe" {\n}\n')
+        args[1] = str(p)
+    elif case == "fifo":
+        p = tmp_path / "pipe.usda"
+        os.mkfifo(p)
+        args[1] = str(p)
+    elif case == "usdz_not_zip":
+        p = tmp_path / "fake.usdz"
+        p.write_text("not a zip")
+        args[1] = str(p)
+    elif case == "directory":
+        args[1] = str(tmp_path)
     elif case == "time_bits_wrong_method":
         args += ["--time-bits", "64"]
     elif case == "bad_camera":
@@ -71,6 +86,8 @@ def test_user_errors_exit_2_with_one_line_and_no_output(tmp_path, scene_path, ca
     assert len(lines) == 1 and lines[0].startswith("warp-blur: error:"), err
     assert "Traceback" not in err
     assert not os.path.exists(tmp_path / "out") or not os.listdir(tmp_path / "out")
+    if case == "syntax":   # USD's own words say where
+        assert "line 3" in lines[0], lines[0]
 
 
 def test_render_frames_writes_each_frame(tmp_path, scene_path):

@@ -3,6 +3,8 @@ shadows from area lights, and no shadow work where no light casts one."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 from scenes import shadow_stage
@@ -254,3 +256,24 @@ def test_moving_receiver_is_not_shadowed_by_itself_at_other_instants(scene_path)
         off = wb.render(path, frame=1, resolution=(64, 48), method=method, aovs=(), shadows="off", **kw)
         assert lit.stats["shadow_lights"] == 1
         assert max_abs(lit.rgba, off.rgba) <= 1e-4, method
+
+
+SHIPPED = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "usd_scenes")
+
+
+@pytest.mark.parametrize("scene,frame,ref_samples,bounds", [
+    # measured at the change (issue 15): analytic, stochastic-32, accumulation-32
+    ("near_plane", 2, 128, {"analytic": 0.0032, "stochastic": 0.0080, "accumulation": 0.0047}),
+    ("shadows", 6, 64, {"analytic": 0.0011, "stochastic": 0.0013, "accumulation": 0.0011}),
+])
+def test_default_shadows_match_direct_accumulation(scene, frame, ref_samples, bounds):
+    """The default (--shadows auto) path of every method against accumulation with a map per
+    instant (--shadows direct), on shipped stages with moving occluders and receivers; bounds
+    are the figures measured when auto stopped warping, with 25% room."""
+    path = os.path.join(SHIPPED, f"{scene}.usda")
+    ref = wb.render(path, frame=frame, method="accumulation", samples=ref_samples, shadows="direct",
+                    resolution=(96, 72), aovs=())
+    for method, bound in bounds.items():
+        kw = {} if method == "analytic" else {"samples": 32}
+        got = wb.render(path, frame=frame, method=method, resolution=(96, 72), aovs=(), **kw)
+        assert rmse(got.rgba, ref.rgba) <= 1.25 * bound, (scene, method, rmse(got.rgba, ref.rgba))

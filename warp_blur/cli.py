@@ -50,7 +50,7 @@ def _build_parser() -> argparse.ArgumentParser:
     sg = r.add_argument_group("shadows")
     sg.add_argument("--shadows", default="auto", choices=["auto", "warped", "direct", "off"],
                     help="shadow maps warped from key maps, rendered per instant (reference), none, or auto "
-                         "(direct, warped for accumulation)")
+                         "(per light: rendered unless warping is measured cheaper for this frame)")
     sg.add_argument("--shadow-map-size", type=int, help="texels per shadow-map side (power of two; 512)")
     sg.add_argument("--light-samples", type=int, help="point samples per area light: soft shadows (1)")
     sg.add_argument("--shadow-times", type=int, default=8, help="shadow-map instants over the shutter (8)")

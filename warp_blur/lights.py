@@ -33,11 +33,29 @@ class LightPrim:
     kind: int
 
 
+def _finite_input(light: UsdLux.LightAPI, attr, time: Usd.TimeCode, fallback, width: int) -> np.ndarray:
+    """An authored light input as floats (width,), or USD's fallback with a warning (once per
+    prim and input) when it is not finite or not a number: a NaN must never reach a pixel."""
+    value = attr.Get(time)
+    if value is None:
+        return np.asarray(fallback, np.float64).reshape(width)
+    try:
+        arr = np.asarray(value, np.float64).reshape(width)
+    except (TypeError, ValueError):
+        arr = None
+    if arr is None or not np.isfinite(arr).all() or np.abs(arr).max(initial=0.0) > 1e30:
+        warn_once(f"light-input:{light.GetPath()}:{attr.GetName()}",
+                  f"light {light.GetPath()}: {attr.GetName()} = {value} is not a finite number; "
+                  f"using USD's fallback {fallback}")
+        return np.asarray(fallback, np.float64).reshape(width)
+    return arr
+
+
 def _radiance(light: UsdLux.LightAPI, time: Usd.TimeCode) -> np.ndarray:
-    color = np.asarray(light.GetColorAttr().Get(time) or (1, 1, 1), np.float64)
-    intensity = float(light.GetIntensityAttr().Get(time) or 0.0)
-    exposure = float(light.GetExposureAttr().Get(time) or 0.0)
-    return color * intensity * 2.0 ** exposure
+    color = _finite_input(light, light.GetColorAttr(), time, (1.0, 1.0, 1.0), 3)
+    intensity = float(_finite_input(light, light.GetIntensityAttr(), time, 1.0, 1)[0])
+    exposure = float(_finite_input(light, light.GetExposureAttr(), time, 0.0, 1)[0])
+    return color * intensity * 2.0 ** min(exposure, 100.0)
 
 
 def find_lights(stage: Usd.Stage) -> tuple[list[LightPrim], np.ndarray | None]:

@@ -44,13 +44,29 @@ def _input_value(shader: UsdShade.Shader, name: str, frame: float, material_path
         if attrs and attrs[0].GetPrim() != shader.GetPrim() and UsdShade.Input.IsInput(attrs[0]):
             value = attrs[0].Get(Usd.TimeCode(frame))
             if value is not None:
-                return value
+                return _finite(value, name, material_path)
         warn_once(f"connected:{material_path}:{name}",
                   f"material {material_path}: input '{name}' is connected (texture or node graph), "
                   f"which warp_blur does not evaluate; using USD's fallback {FALLBACKS[name]}")
         return FALLBACKS[name]
     value = inp.Get(Usd.TimeCode(frame))
-    return FALLBACKS[name] if value is None else value
+    return FALLBACKS[name] if value is None else _finite(value, name, material_path)
+
+
+def _finite(value, name: str, material_path: str):
+    """value when it is a finite number (or vector) of USD's type for the input, else USD's
+    fallback with a warning (once per material and input): a NaN must never reach a pixel."""
+    try:
+        arr = np.asarray(value, np.float64).reshape(np.shape(FALLBACKS[name]))
+        ok = bool(np.isfinite(arr).all()) and np.abs(arr).max(initial=0.0) <= 1e30
+    except (TypeError, ValueError):
+        ok = False
+    if ok:
+        return value
+    warn_once(f"nonfinite:{material_path}:{name}",
+              f"material {material_path}: input '{name}' = {value} is not a finite value; "
+              f"using USD's fallback {FALLBACKS[name]}")
+    return FALLBACKS[name]
 
 
 def preview_surface_row(material: UsdShade.Material, frame: float) -> np.ndarray | None:

@@ -25,15 +25,36 @@ def open_stage(path: str) -> Usd.Stage:
         raise StageError(f"stage not found: {path}")
     if os.path.isdir(path):
         raise StageError(f"stage path is a directory: {path}")
+    if not os.path.isfile(path):
+        raise StageError(f"stage path is not a regular file: {path}")
     try:
         stage = Usd.Stage.Open(path)
-    except Tf.ErrorException as exc:
-        first = str(exc).strip().splitlines()
-        detail = next((ln.strip() for ln in first if ln.strip() and not ln.strip().startswith("Error in")), "")
-        raise StageError(f"cannot read stage {path}: {detail or 'invalid USD'}") from None
+    except (Tf.ErrorException, UnicodeDecodeError, RuntimeError) as exc:
+        raise StageError(f"cannot read stage {path}: {usd_error_detail(exc)}") from None
     if stage is None:
         raise StageError(f"cannot read stage {path}")
     return stage
+
+
+def usd_error_detail(exc: BaseException) -> str:
+    """One line from a USD error: the parser's `line:column: what` when it names them (USD's
+    internal namespaces dropped), else the first line of its text; USD text that is not UTF-8
+    (a file with non-text bytes) becomes a plain statement."""
+    try:
+        text = str(exc)
+    except UnicodeDecodeError:
+        return "the file is not valid USD text (bytes that are not UTF-8)"
+    if isinstance(exc, UnicodeDecodeError):
+        return "the file is not valid USD text (bytes that are not UTF-8)"
+    text = re.sub(r"pxrInternal_v\w*?__pxrReserved__::|pxrInternal_v\w*?___", "", text)
+    where = re.search(r":(\d+):(\d+): ([^\n']{0,160})", text)
+    if where:
+        return f"line {where.group(1)}, column {where.group(2)}: {where.group(3).strip()}"
+    lines = [ln.strip() for ln in text.strip().splitlines() if ln.strip()]
+    detail = next((ln for ln in lines if not ln.startswith("Error in")), "")
+    if not detail and lines:   # "Error in '...' at line N in file F : 'message'"
+        detail = lines[0].split(" : ", 1)[-1].strip("' ")
+    return detail[:200] or "invalid USD"
 
 
 def render_settings_prim(stage: Usd.Stage) -> UsdRender.Settings | None:
