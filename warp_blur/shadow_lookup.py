@@ -7,12 +7,12 @@ face's rotation in the light's local frame (rows 0-8), the light sample's offset
 (9-11), the window (12-15: x0, y0, x1, y1 on the plane at distance 1, or in scene units when
 orthographic), the ortho flag (16) and the near depth (17). face_from_cam is built at the lookup's
 own time from the light table (the light's frame in camera space then), so a moving camera never
-shifts a shadow: maps are rigid with the light.
+shifts a shadow: maps are rigid with the light. Texel (i, j) of an S×S face covers window x in
+[x0 + i (x1-x0)/S, ...], y measured downwards from y1, as camera pixels are.
 
 Layout: a light's face slot (first + m F + f for sample m, face f) holds the depths of all its
 map instants side by side, shadow_maps[slot, y, x, b], so a lookup between two instants, and the
-lookups of neighbouring samples at other times, read the same cache lines. Texel (i, j) of an S×S face covers window x in
-[x0 + i (x1-x0)/S, ...], y measured downwards from y1, as camera pixels are.
+lookups of neighbouring samples at other times, read the same cache lines.
 
 Comparisons are averaged, never depths: a light's visibility at time u is the PCF comparison
 averaged over its M samples, linearly interpolated between the two maps whose instants bracket u

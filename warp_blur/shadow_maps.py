@@ -147,7 +147,7 @@ class ShadowData:
     times: int
     size: int
     varying: np.ndarray | None = None
-    device_arrays: dict = field(default_factory=dict)   # device -> (maps, varying, faces) uploaded
+    device_arrays: dict = field(default_factory=dict)   # device -> uploaded (maps, varying, faces, slot lights)
 
 
 def varying_texels(maps: np.ndarray, lights: np.ndarray, times: int) -> np.ndarray:

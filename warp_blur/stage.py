@@ -40,12 +40,13 @@ def usd_error_detail(exc: BaseException) -> str:
     """One line from a USD error: the parser's `line:column: what` when it names them (USD's
     internal namespaces dropped), else the first line of its text; USD text that is not UTF-8
     (a file with non-text bytes) becomes a plain statement."""
+    not_text = "the file is not valid USD text (bytes that are not UTF-8)"
+    if isinstance(exc, UnicodeDecodeError):
+        return not_text
     try:
         text = str(exc)
-    except UnicodeDecodeError:
-        return "the file is not valid USD text (bytes that are not UTF-8)"
-    if isinstance(exc, UnicodeDecodeError):
-        return "the file is not valid USD text (bytes that are not UTF-8)"
+    except UnicodeDecodeError:   # USD's message quotes the file's bytes
+        return not_text
     text = re.sub(r"pxrInternal_v\w*?__pxrReserved__::|pxrInternal_v\w*?___", "", text)
     where = re.search(r":(\d+):(\d+): ([^\n']{0,160})", text)
     if where:
