@@ -37,7 +37,7 @@ def test_output_patterns():
         output_path_for_frame("shot.####.exr", 1.5, 2)
 
 
-@pytest.mark.parametrize("case", ["missing", "no_camera", "bad_frames", "bad_resolution", "zero_resolution",
+@pytest.mark.parametrize("case", ["missing", "empty_stage", "bad_frames", "bad_resolution", "zero_resolution",
                                   "syntax", "time_bits_wrong_method", "bad_camera", "not_utf8", "fifo",
                                   "usdz_not_zip", "directory"])
 def test_user_errors_exit_2_with_one_line_and_no_output(tmp_path, scene_path, case):
@@ -47,7 +47,7 @@ def test_user_errors_exit_2_with_one_line_and_no_output(tmp_path, scene_path, ca
     args = ["render", good, "-o", out, "--frame", "1", "--resolution", "32x24"]
     if case == "missing":
         args[1] = str(tmp_path / "nope.usda")
-    elif case == "no_camera":
+    elif case == "empty_stage":   # no camera and nothing to frame
         p = scene_path()
         st = new_stage(p)
         st.GetRootLayer().Save()

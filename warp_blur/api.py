@@ -17,6 +17,7 @@ import warp as wp
 
 from . import log
 from .frame import FrameContext
+from .framing import is_framing_camera, place_framing_camera
 from .errors import SettingsError, StageError, UserError
 from .methods import get_method
 from .scene import Scene
@@ -94,6 +95,8 @@ class Renderer:
         t_start = time.perf_counter()
         s = self.settings
         device = s.device
+        if is_framing_camera(self.camera):
+            place_framing_camera(self.stage, self.camera, frame, self.resolution[0] / self.resolution[1])
         proj = projection_at(self.camera, frame, self.resolution, self.conform)
         shutter = shutter_for_frame(self.stage, self.camera, frame, s.shutter)
         t0 = time.perf_counter()

@@ -6,6 +6,7 @@ import numpy as np
 from pxr import UsdGeom
 
 from .lights import DISTANT, DISK, RECT, SPHERE
+from .framing import is_framing_camera, place_framing_camera
 from .scene import Scene
 from .stage import (choose_camera, choose_resolution, conform_policy, open_stage, projection_at,
                     shutter_for_frame)
@@ -21,6 +22,8 @@ def scene_report(path: str, camera: str | None = None, frame: float | None = Non
     res = choose_resolution(stage, resolution)
     if frame is None:
         frame = float(stage.GetStartTimeCode()) if stage.HasAuthoredTimeCodeRange() else 1.0
+    if is_framing_camera(cam):
+        place_framing_camera(stage, cam, frame, res[0] / res[1])
     shutter = shutter_for_frame(stage, cam, frame, None)
     proj = projection_at(cam, frame, res, conform_policy(stage))
     scene = Scene(stage, cam, frame, shutter, skip_invalid=True)
@@ -50,7 +53,7 @@ def scene_report(path: str, camera: str | None = None, frame: float | None = Non
         "velocity": int(t * 3 * 12 * 3 + px * 16 * 4 + t * 32),
     }
     return {
-        "scene": path, "camera": str(cam.GetPath()), "resolution": list(res),
+        "scene": path, "camera": str(cam.GetPath()), "camera_computed": is_framing_camera(cam), "resolution": list(res),
         "projection": "orthographic" if proj.orthographic else "perspective",
         "frame_range": [stage.GetStartTimeCode(), stage.GetEndTimeCode()],
         "frames_per_second": stage.GetFramesPerSecond(), "frame": frame,
@@ -66,7 +69,8 @@ def format_report(r: dict) -> str:
     """Human-readable text of a scene report."""
     lines = [
         f"scene       {r['scene']}",
-        f"camera      {r['camera']} ({r['projection']}), {r['resolution'][0]}x{r['resolution'][1]}",
+        f"camera      {r['camera']} ({r['projection']}{', computed to frame the stage' if r['camera_computed'] else ''}), "
+        f"{r['resolution'][0]}x{r['resolution'][1]}",
         f"frames      {r['frame_range'][0]:g}..{r['frame_range'][1]:g} at {r['frames_per_second']:g} fps",
         f"shutter     [{r['shutter'][0]:g}, {r['shutter'][1]:g}] at frame {r['frame']:g}",
         f"stage       upAxis {r['up_axis']}, metersPerUnit {r['meters_per_unit']:g}",

@@ -14,6 +14,7 @@ from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdRender, UsdUtils
 
 from .camera import Projection, conform_window
 from .errors import StageError, UserError
+from .framing import FRAMING_CAMERA_PATH, define_framing_camera
 from .log import warn_once
 
 DEFAULT_RESOLUTION = (640, 480)
@@ -70,7 +71,10 @@ def render_settings_prim(stage: Usd.Stage) -> UsdRender.Settings | None:
 
 
 def choose_camera(stage: Usd.Stage, camera: str | None) -> UsdGeom.Camera:
-    """SPEC §3: the argument, else the render settings' camera, else the first camera found."""
+    """SPEC §3: the argument, else the render settings' camera, else the first camera found, else
+    a camera that frames the stage (framing.py; placed per frame by place_framing_camera)."""
+    if camera == FRAMING_CAMERA_PATH:
+        return define_framing_camera(stage)
     if camera:
         prim = stage.GetPrimAtPath(camera) if Sdf.Path.IsValidPathString(camera) else None
         if not prim or not prim.IsValid():
@@ -90,7 +94,7 @@ def choose_camera(stage: Usd.Stage, camera: str | None) -> UsdGeom.Camera:
     for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
         if prim.IsA(UsdGeom.Camera):
             return UsdGeom.Camera(prim)
-    raise StageError("the stage has no camera (add a UsdGeom.Camera or pass --camera)")
+    return define_framing_camera(stage)
 
 
 def choose_resolution(stage: Usd.Stage, resolution: tuple[int, int] | None) -> tuple[int, int]:

@@ -1,0 +1,71 @@
+"""The framing camera of a stage without one: checked against USD's own Gf.Frustum projection."""
+
+import itertools
+
+import numpy as np
+import pytest
+from authoring import add_mesh, new_stage
+from pxr import Gf, Usd, UsdGeom
+
+import warp_blur as wb
+from warp_blur.errors import StageError
+from warp_blur.framing import FRAMING_CAMERA_PATH, place_framing_camera, stage_bounds
+from warp_blur.info import scene_report
+from warp_blur.stage import choose_camera, open_stage
+
+
+def _box_stage(path: str, up: str, lo=(-3.0, 0.5, -1.0), hi=(5.0, 2.5, 2.0)) -> str:
+    stage = new_stage(path, up=up)
+    pts = [tuple(lo[k] if (i >> k) & 1 == 0 else hi[k] for k in range(3)) for i in range(8)]
+    faces = [0, 1, 3, 2, 4, 6, 7, 5, 0, 4, 5, 1, 2, 3, 7, 6, 0, 2, 6, 4, 1, 5, 7, 3]
+    add_mesh(stage, "/World/Box", pts, [4] * 6, faces)
+    stage.GetRootLayer().Save()
+    return path
+
+
+@pytest.mark.parametrize("up", ["Y", "Z"])
+def test_framing_camera_holds_the_bounds_in_view(scene_path, up):
+    stage = open_stage(_box_stage(scene_path(), up))
+    cam = choose_camera(stage, None)
+    assert str(cam.GetPath()) == FRAMING_CAMERA_PATH
+    place_framing_camera(stage, cam, 1.0, 4 / 3)
+    gf = cam.GetCamera(Usd.TimeCode(1.0))
+    gf.horizontalAperture = max(gf.horizontalAperture, gf.verticalAperture * 4 / 3)   # expandAperture
+    gf.verticalAperture = gf.horizontalAperture * 3 / 4
+    vp = gf.frustum.ComputeViewMatrix() * gf.frustum.ComputeProjectionMatrix()
+    box = stage_bounds(stage, 1.0)
+    ndc = []
+    near, far = gf.clippingRange.min, gf.clippingRange.max
+    view = gf.frustum.ComputeViewMatrix()
+    for corner in itertools.product(*zip(box.GetMin(), box.GetMax())):
+        p = vp.Transform(Gf.Vec3d(*corner))
+        ndc.append((p[0], p[1]))
+        depth = -view.Transform(Gf.Vec3d(*corner))[2]
+        assert near < depth < far, "the clipping range holds the whole bounds"
+    ndc = np.abs(np.array(ndc))
+    assert ndc.max() <= 1.0, "every corner of the bounds is in view"
+    assert ndc.max() > 0.5, "the bounds fill a good part of the frame"
+    forward = np.array(gf.frustum.ComputeViewDirection())
+    expected = [0, 1, 0] if up == "Z" else [0, 0, -1]
+    np.testing.assert_allclose(forward, expected, atol=1e-9)
+    up_vec = np.array(gf.frustum.ComputeUpVector())
+    np.testing.assert_allclose(up_vec, [0, 0, 1] if up == "Z" else [0, 1, 0], atol=1e-9)
+
+
+def test_a_stage_without_camera_renders_through_the_framing_camera(scene_path):
+    path = _box_stage(scene_path(), "Y")
+    result = wb.render(path, frame=1, method="accumulation", samples=1, resolution=(64, 48))
+    assert result.metadata["camera"] == FRAMING_CAMERA_PATH
+    assert any("computed camera" in w for w in result.stats["warnings"])
+    alpha = result.rgba[..., 3]
+    assert alpha.mean() > 0.1 and alpha[0].max() == 0 and alpha[-1].max() == 0   # in view, not cropped
+    report = scene_report(path, resolution=(64, 48))
+    assert report["camera_computed"] and report["camera"] == FRAMING_CAMERA_PATH
+    with open(path) as f:
+        assert "WarpBlurFramingCamera" not in f.read(), "the file on disk is never edited"
+
+
+def test_a_missing_named_camera_stays_an_error(scene_path):
+    path = _box_stage(scene_path(), "Y")
+    with pytest.raises(StageError, match="not found"):
+        wb.render(path, frame=1, camera="/World/NoSuchCam", resolution=(32, 24))
