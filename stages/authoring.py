@@ -87,6 +87,32 @@ def add_material(stage: Usd.Stage, path: str, diffuse=(0.0, 0.0, 0.0), emissive=
     return mat
 
 
+def add_textured_material(stage: Usd.Stage, path: str, image: str, input_name: str = "emissiveColor",
+                          color_space: str = "raw", wrap: str = "clamp", st_name: str = "st") -> UsdShade.Material:
+    """A UsdPreviewSurface whose `input_name` reads the rgb of a UsdUVTexture of `image` (a path
+    relative to the stage), at texture coordinates from primvar `st_name`; black otherwise."""
+    mat = add_material(stage, path)
+    surface = UsdShade.Shader.Get(stage, f"{path}/PreviewSurface")
+    reader = UsdShade.Shader.Define(stage, f"{path}/StReader")
+    reader.CreateIdAttr("UsdPrimvarReader_float2")
+    reader.CreateInput("varname", Sdf.ValueTypeNames.Token).Set(st_name)
+    tex = UsdShade.Shader.Define(stage, f"{path}/Texture")
+    tex.CreateIdAttr("UsdUVTexture")
+    tex.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(image)
+    tex.CreateInput("sourceColorSpace", Sdf.ValueTypeNames.Token).Set(color_space)
+    tex.CreateInput("wrapS", Sdf.ValueTypeNames.Token).Set(wrap)
+    tex.CreateInput("wrapT", Sdf.ValueTypeNames.Token).Set(wrap)
+    tex.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(reader.ConnectableAPI(), "result")
+    surface.GetInput(input_name).ConnectToSource(tex.ConnectableAPI(), "rgb")
+    return mat
+
+
+def set_st(mesh: UsdGeom.Mesh, st: Sequence, interpolation: str = "vertex", name: str = "st") -> None:
+    """Texture coordinates as a texCoord2f primvar."""
+    pv = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(name, Sdf.ValueTypeNames.TexCoord2fArray, interpolation)
+    pv.Set(Vt.Vec2fArray([Gf.Vec2f(*uv) for uv in st]))
+
+
 def bind(prim: Usd.Prim, material: UsdShade.Material | None) -> None:
     if material is not None:
         UsdShade.MaterialBindingAPI.Apply(prim).Bind(material)
@@ -144,6 +170,7 @@ def add_distant_light(stage: Usd.Stage, path: str, intensity=1.0, color=(1, 1, 1
                       shadows=True) -> UsdLux.DistantLight:
     light = UsdLux.DistantLight.Define(stage, path)
     light.CreateIntensityAttr(intensity)
+    light.CreateNormalizeAttr(True)   # intensity is the illuminance (UsdLux), whatever the sun's angle
     light.CreateColorAttr(Gf.Vec3f(*color))
     light.AddRotateXYZOp().Set(Gf.Vec3f(*rotate))
     UsdLux.ShadowAPI.Apply(light.GetPrim()).CreateShadowEnableAttr(shadows)

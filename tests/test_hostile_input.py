@@ -3,6 +3,8 @@ a warning, so no NaN reaches a pixel."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -26,6 +28,7 @@ def Xform "World"
     {
         color3f inputs:color = LIGHT_COLOR
         float inputs:intensity = LIGHT_INTENSITY
+        bool inputs:normalize = 1
     }
     def Mesh "Quad" (prepend apiSchemas = ["MaterialBindingAPI"])
     {
@@ -67,3 +70,88 @@ def test_non_finite_inputs_fall_back_with_a_warning(tmp_path, case, method):
     assert np.isfinite(result.rgba).all()
     assert result.rgba[12, 16, :3].max() > 0.01      # the quad is lit, not black
     assert any("not a finite" in w for w in result.stats["warnings"]), result.stats["warnings"]
+
+
+# ------------------------------------------------------------------ boundaries (issue 17)
+def _quad(scene_path, **kw):
+    from scenes import emissive_quad_stage
+    return emissive_quad_stage(scene_path(), translate_samples={0: (-1, 0, 0), 2: (1, 0, 0)}, **kw)
+
+
+def _cli(*args):
+    import contextlib
+    import io
+
+    from warp_blur.cli import main
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = main(list(args))
+    return code, [ln for ln in err.getvalue().splitlines() if ln.strip()]
+
+
+def test_negative_values_are_accepted_in_the_form_the_errors_suggest(tmp_path, scene_path):
+    out = str(tmp_path / "a.exr")
+    code, _ = _cli("render", _quad(scene_path), "-o", out, "--frame", "1", "--resolution", "16x12",
+                   "--shutter", "-0.25:0.25", "--samples", "1", "--quiet")
+    assert code == 0 and os.path.exists(out)
+    code, lines = _cli("render", _quad(scene_path), "-o", out, "--resolution", "-5x5")
+    assert code == 2 and len(lines) == 1 and "positive" in lines[0]
+
+
+@pytest.mark.parametrize("camera,shutter,needle", [
+    ({"focal": 0.0}, None, "focalLength"), ({"focal": float("nan")}, None, "focalLength"),
+    ({"haperture": -24.0}, None, "horizontalAperture"), ({"hoffset": 1e30}, None, "horizontalApertureOffset"),
+    ({}, "-1e9:1e9", "wider than"), ({}, "-0.5:1e6", "wider than"),
+])
+def test_bad_cameras_and_shutters_exit_2_naming_them(tmp_path, scene_path, camera, shutter, needle):
+    from scenes import emissive_quad_stage
+    path = emissive_quad_stage(scene_path(), camera=camera)
+    out = str(tmp_path / "a.exr")
+    args = ["render", path, "-o", out, "--frame", "1", "--resolution", "16x12", "--method", "analytic"]
+    if shutter:
+        args += ["--shutter", shutter]
+    code, lines = _cli(*args)
+    errors = [ln for ln in lines if "error" in ln]
+    assert code == 2 and len(errors) == 1 and needle in errors[0] and not os.path.exists(out)
+
+
+def test_a_hundred_million_frames_are_refused_before_any_work(tmp_path, scene_path):
+    import time
+    t0 = time.perf_counter()
+    code, lines = _cli("render", _quad(scene_path), "-o", str(tmp_path / "f.####.exr"), "--frames", "1:100000000")
+    assert code == 2 and "100,000,000 frames" in lines[-1] and time.perf_counter() - t0 < 30
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+def test_a_read_only_output_folder_fails_before_rendering(tmp_path, scene_path):
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    folder.chmod(0o555)
+    code, lines = _cli("render", _quad(scene_path), "-o", str(folder / "a.exr"), "--frame", "1")
+    assert code == 2 and "cannot write" in lines[-1]
+
+
+def test_temporaries_of_live_runs_survive_and_outputs_follow_the_umask(tmp_path, scene_path):
+    import socket
+    import subprocess
+
+    from warp_blur.batch import remove_stale_temporaries
+    from warp_blur.output import TEMP_PREFIX
+    host = socket.gethostname().replace("-", "_")
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    live = tmp_path / f"{TEMP_PREFIX}{host}-{os.getpid()}-abc.exr"
+    stale = tmp_path / f"{TEMP_PREFIX}{host}-{dead.pid}-abc.exr"
+    foreign = tmp_path / ".tmp-someone-else.exr"
+    for p in (live, stale, foreign):
+        p.write_text("x")
+    assert remove_stale_temporaries([str(tmp_path / "f.0001.exr")]) == 1
+    assert live.exists() and foreign.exists() and not stale.exists()
+    old = os.umask(0o022)
+    try:
+        out = tmp_path / "a.exr"
+        code, _ = _cli("render", _quad(scene_path), "-o", str(out), "--frame", "1", "--resolution", "8x6",
+                       "--samples", "1", "--quiet")
+    finally:
+        os.umask(old)
+    assert code == 0 and (out.stat().st_mode & 0o777) == 0o644

@@ -52,21 +52,42 @@ def run_task(task: FrameTask) -> dict:
                 "seconds": time.perf_counter() - t0}
     except UserError as exc:
         return {"frame": task.frame, "output": task.output, "error": str(exc), "user_error": True}
+    except (OSError, MemoryError) as exc:   # a full disk, a folder gone, too little memory: named, not raw
+        return {"frame": task.frame, "output": task.output, "user_error": True,
+                "error": f"cannot render or write {task.output}: {getattr(exc, 'strerror', None) or exc}"}
     except Exception as exc:  # a crash in one frame is reported, the others go on
         return {"frame": task.frame, "output": task.output, "error": f"{type(exc).__name__}: {exc}"}
 
 
 def remove_stale_temporaries(outputs: list[str]) -> int:
-    """Delete temporaries a killed run left beside the outputs (never a final-named file)."""
+    """Delete temporaries a killed run left beside the outputs: only files of our own naming
+    (output.temporary_prefix) whose owner is a process of this host that no longer runs."""
+    import socket
+
+    from .output import TEMP_PREFIX
+    host = socket.gethostname().replace("-", "_")
     removed = 0
     for folder in {os.path.dirname(os.path.abspath(p)) for p in outputs}:
-        for path in glob.glob(os.path.join(folder, ".tmp-*")):
+        for path in glob.glob(os.path.join(folder, TEMP_PREFIX + "*")):
+            parts = os.path.basename(path)[len(TEMP_PREFIX):].split("-")
+            if len(parts) < 3 or parts[0] != host or not parts[1].isdigit() or _alive(int(parts[1])):
+                continue
             try:
                 os.unlink(path)
                 removed += 1
             except OSError:
                 pass
     return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:   # another user's live process
+        return True
+    return True
 
 
 def execute(tasks: list[FrameTask], workers: int = 1, cluster: str | None = None,
@@ -92,6 +113,9 @@ def execute(tasks: list[FrameTask], workers: int = 1, cluster: str | None = None
                 if fail_fast and "error" in res:
                     client.cancel(futures)
                     return
+        except BaseException:
+            client.cancel(futures)
+            raise
         finally:
             client.close()
         return
@@ -100,21 +124,36 @@ def execute(tasks: list[FrameTask], workers: int = 1, cluster: str | None = None
         threads = max(1, (os.cpu_count() or 1) // workers)
         tasks = [FrameTask(**{**asdict(t), "settings": {**t.settings, "threads": t.settings.get("threads") or threads}})
                  for t in tasks]
-        with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+        try:
             futures = [pool.submit(run_task, t) for t in tasks]
             for fut in as_completed(futures):
                 res = fut.result()
                 yield res
                 if fail_fast and "error" in res:
-                    for f in futures:
-                        f.cancel()
-                    return
+                    break
+        except BaseException:   # Ctrl-C (or the caller stopping): no worker goes on rendering
+            _stop_workers(pool)
+            raise
+        _stop_workers(pool)
         return
     for t in tasks:
         res = run_task(t)
         yield res
         if fail_fast and "error" in res:
             return
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Cancel what has not started and end the worker processes now (their temporaries are then
+    stale: a dead owner's, removed by remove_stale_temporaries)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in processes:
+        if proc.is_alive():
+            proc.terminate()
+    for proc in processes:
+        proc.join(timeout=5)
 
 
 def render_frames(scene: str, frames: list[float], *, settings=None, camera: str | None = None,

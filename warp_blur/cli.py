@@ -145,6 +145,9 @@ def _cmd_render(args) -> int:
     cam = str(renderer.camera.GetPath())
     settings_dict = {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
     remove_stale_temporaries(paths)
+    from .output import check_writable
+    for folder_path in {os.path.dirname(os.path.abspath(p)): p for p in paths}.values():
+        check_writable(folder_path)   # a read-only or missing folder fails before any frame renders
     tasks, skipped = [], 0
     for frame, path in zip(frames, paths):
         fp = fingerprint(args.scene, cam, renderer.resolution, frame, settings)
@@ -164,8 +167,27 @@ def _cmd_render(args) -> int:
     bar = tqdm(total=len(frames), initial=skipped, unit="frame", disable=args.quiet or len(frames) < 2,
                file=sys.stderr, dynamic_ncols=True)
     single = len(frames) == 1
+    try:
+        user_errors = list_results(execute(tasks, workers=args.workers, cluster=args.cluster,
+                                           fail_fast=args.fail_fast), bar, args, failures, single)
+    except KeyboardInterrupt:
+        bar.close()
+        remove_stale_temporaries(paths)   # workers ended: their temporaries are a dead owner's
+        raise
+    bar.close()
+    if single and failures and user_errors:
+        raise UserError(failures[0][1])  # one frame of bad input: exit 2, one line
+    if failures:
+        print(f"warp-blur: {len(failures)} of {len(frames)} frames failed: "
+              + "; ".join(f"frame {f:g}: {m}" for f, m in sorted(failures)), file=sys.stderr)
+        return 1
+    return 0
+
+
+def list_results(results, bar, args, failures: list, single: bool) -> int:
+    """Consume frame results as they end (bar, JSON lines, failures); returns the user errors."""
     user_errors = 0
-    for res in execute(tasks, workers=args.workers, cluster=args.cluster, fail_fast=args.fail_fast):
+    for res in results:
         if "error" in res:
             failures.append((res["frame"], res["error"]))
             user_errors += bool(res.get("user_error"))
@@ -176,14 +198,7 @@ def _cmd_render(args) -> int:
             if args.json:
                 print(json.dumps(res, default=str), flush=True)
         bar.update(1)
-    bar.close()
-    if single and failures and user_errors:
-        raise UserError(failures[0][1])  # one frame of bad input: exit 2, one line
-    if failures:
-        print(f"warp-blur: {len(failures)} of {len(frames)} frames failed: "
-              + "; ".join(f"frame {f:g}: {m}" for f, m in sorted(failures)), file=sys.stderr)
-        return 1
-    return 0
+    return user_errors
 
 
 def _cmd_compare(args) -> int:
@@ -223,6 +238,24 @@ def _cmd_info(args) -> int:
     return 0
 
 
+#: Options whose value may start with '-' (a negative shutter offset or resolution): argparse
+#: would take `--shutter -0.25:0.25` for two options, so such pairs are joined as `--shutter=…`.
+_DASH_VALUE_OPTIONS = ("--shutter", "--resolution", "--frame", "--frames")
+
+
+def _join_dash_values(argv: list[str]) -> list[str]:
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        if argv[i] in _DASH_VALUE_OPTIONS and i + 1 < len(argv) and argv[i + 1].startswith("-"):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     log = logging.getLogger("warp_blur")
     for h in list(log.handlers):
@@ -233,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
     log.setLevel(logging.WARNING)
     log.propagate = False
     try:
-        args = _build_parser().parse_args(argv)
+        args = _build_parser().parse_args(_join_dash_values(sys.argv[1:] if argv is None else list(argv)))
         if getattr(args, "quiet", False):
             log.setLevel(logging.ERROR)
         if args.command == "render":

@@ -35,14 +35,20 @@ def make_view(proj: Projection, spatial: int, bins: TileBins | None, tile_size: 
 
 
 class TriangleTables:
-    """Per-triangle data uploaded once per frame (topology, flags, materials, colours)."""
+    """Per-triangle data uploaded once per frame (topology, flags, materials, corner colours
+    (3T, 3), and for textured scenes corner texture coordinates (3T, 2) and levels of detail (T,))."""
 
     def __init__(self, tri_vertices: np.ndarray, tri_flags: np.ndarray, tri_material: np.ndarray,
-                 tri_colors: np.ndarray, device: str) -> None:
+                 corner_colors: np.ndarray, device: str, corner_uvs: np.ndarray | None = None,
+                 tri_lod: np.ndarray | None = None) -> None:
         self.tri_vertices = device_array(tri_vertices.astype(np.int32), wp.vec3i, device)
         self.tri_flags = device_array(tri_flags.astype(np.int32), int, device)
         self.tri_material = device_array(tri_material.astype(np.int32), int, device)
-        self.tri_colors = device_array(tri_colors.astype(np.float32), wp.vec3, device)
+        self.tri_colors = device_array(corner_colors.astype(np.float32), wp.vec3, device)
+        empty = np.zeros(0, np.float32)
+        self.tri_uvs = device_array((corner_uvs if corner_uvs is not None else empty.reshape(0, 2)).astype(np.float32),
+                                    wp.vec2, device)
+        self.tri_lod = device_array((tri_lod if tri_lod is not None else empty).astype(np.float32), float, device)
         self.device = device
 
 
@@ -64,6 +70,7 @@ def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.nda
         g.normals = wp.array(np.ascontiguousarray(normals, np.float32), dtype=wp.vec3, device=dev)
     g.tri_vertices, g.tri_flags = tables.tri_vertices, tables.tri_flags
     g.tri_material, g.tri_colors = tables.tri_material, tables.tri_colors
+    g.tri_uvs, g.tri_lod = tables.tri_uvs, tables.tri_lod
     g.entry_tri = device_array(entry_tri.astype(np.int32), int, dev)
     g.entry_k0 = device_array(entry_k0.astype(np.int32), int, dev)
     g.entry_k1 = device_array(entry_k1.astype(np.int32), int, dev)
@@ -102,11 +109,30 @@ def instant_frames(lights: np.ndarray, times: int) -> np.ndarray:
     return out
 
 
+def texture_arrays(textures, device: str) -> tuple:
+    """The frame's textures (a textures.TextureSet, or None) on the device, uploaded once."""
+    if textures is None:
+        from .textures import TextureSet
+        textures = _NO_TEXTURES.setdefault(device, TextureSet())
+    cached = textures.device_arrays.get(device)
+    if cached is None:
+        texels, levels, tex, bindings = textures.arrays()
+        cached = textures.device_arrays[device] = (
+            wp.array(texels, dtype=wp.vec4, device=device), wp.array(levels, dtype=int, device=device),
+            wp.array(tex, dtype=int, device=device), wp.array(bindings, dtype=float, device=device))
+    return cached
+
+
+_NO_TEXTURES: dict = {}
+
+
 def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, device: str,
-                 shadows=None, options=None) -> Shading:
+                 shadows=None, options=None, textures=None) -> Shading:
     """lights: (L+1, NL, LIGHT_WIDTH) tables at L+1 knots over the shutter; shadows: a
-    shadow_maps.ShadowData (or None: no light casts shadows) with its ShadowOptions."""
+    shadow_maps.ShadowData (or None: no light casts shadows) with its ShadowOptions; textures:
+    the frame's textures.TextureSet (None: none)."""
     s = Shading()
+    s.tex_texels, s.tex_levels, s.tex_textures, s.tex_bindings = texture_arrays(textures, device)
     s.materials = wp.array(np.ascontiguousarray(materials, np.float32), dtype=float, device=device)
     nl = lights.shape[1]
     lt = lights if nl else np.zeros((lights.shape[0], 1, lights.shape[2]), np.float32)

@@ -20,6 +20,7 @@ from .scene import Scene, Snapshot
 from .settings import RenderSettings
 from .shadow_maps import Sample, ShadowMaps, ShadowOptions, lit_materials
 from .stage import Shutter
+from .textures import texture_lod
 
 
 #: Shutter fractions probed to decide that nothing moves. Open, centre and close alone alias
@@ -73,7 +74,12 @@ class FrameContext:
     def tables(self) -> TriangleTables:
         if self._tables is None:
             s = self.scene
-            self._tables = TriangleTables(s.tri_vertices, s.tri_flags, s.tri_material, s.tri_colors, self.device)
+            lod = None
+            if s.textured:
+                centre = self.probe_snapshots.get(0.5) or self.snapshot(0.5, with_normals=False)
+                lod = texture_lod(self.proj, centre.positions, s.tri_vertices, s.corner_uvs)
+            self._tables = TriangleTables(s.tri_vertices, s.tri_flags, s.tri_material, s.corner_colors, self.device,
+                                          s.corner_uvs if s.textured else None, lod)
         return self._tables
 
     def snapshot(self, u: float, with_normals: bool = True) -> Snapshot:
@@ -151,7 +157,7 @@ class FrameContext:
                     shadows = self._instant_shadows.data_for_instant(self.shutter_fraction(snapshots[0].time),
                                                                      self.instants, self.settings.shadow_times)
         sh = make_shading(self.scene.material_table, lights, self.scene.dome, self.device, shadows,
-                          self.shadow_options())
+                          self.shadow_options(), self.scene.materials.textures)
         if len(snapshots) == 1:
             self._shading_last = (snapshots[0].time, sh)
         return sh

@@ -17,6 +17,7 @@ import math
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom
 
+from .errors import StageError
 from .log import warn_once
 
 FRAMING_CAMERA_PATH = "/WarpBlurFramingCamera"
@@ -25,13 +26,15 @@ _H_APERTURE = 20.955      # USD's fallback apertures (mm, tenths of a scene unit
 _V_APERTURE = 15.2908
 
 
-def stage_bounds(stage: Usd.Stage, frame: float) -> Gf.Range3d:
-    """World-space axis-aligned bounds of the render and default purposes at `frame`."""
+def stage_bounds(stage: Usd.Stage, frame: float) -> Gf.Range3d | None:
+    """World-space axis-aligned bounds of the render and default purposes at `frame` (None: empty
+    or not finite)."""
     purposes = [UsdGeom.Tokens.default_, UsdGeom.Tokens.render]
-    cache = UsdGeom.BBoxCache(Usd.TimeCode(frame), purposes, useExtentsHint=False)
+    time = frame if isinstance(frame, Usd.TimeCode) else Usd.TimeCode(frame)
+    cache = UsdGeom.BBoxCache(time, purposes, useExtentsHint=False)
     box = cache.ComputeWorldBound(stage.GetPseudoRoot()).ComputeAlignedRange()
-    if box.IsEmpty() or not all(math.isfinite(v) for v in (*box.GetMin(), *box.GetMax())):
-        return Gf.Range3d(Gf.Vec3d(-1, -1, -1), Gf.Vec3d(1, 1, 1))
+    if box.IsEmpty() or not all(math.isfinite(v) and abs(v) < 1e30 for v in (*box.GetMin(), *box.GetMax())):
+        return None
     return box
 
 
@@ -65,6 +68,8 @@ def define_framing_camera(stage: Usd.Stage) -> UsdGeom.Camera:
     prim = stage.GetPrimAtPath(FRAMING_CAMERA_PATH)
     if prim and prim.IsA(UsdGeom.Camera):
         return UsdGeom.Camera(prim)
+    if stage_bounds(stage, stage.GetStartTimeCode()) is None and stage_bounds(stage, Usd.TimeCode.Default()) is None:
+        raise StageError("the stage has no camera and no geometry to frame (add a UsdGeom.Camera or pass --camera)")
     with Usd.EditContext(stage, stage.GetSessionLayer()):
         cam = UsdGeom.Camera.Define(stage, Sdf.Path(FRAMING_CAMERA_PATH))
         cam.CreateFocalLengthAttr(_FOCAL_LENGTH)
@@ -78,7 +83,8 @@ def define_framing_camera(stage: Usd.Stage) -> UsdGeom.Camera:
 
 def place_framing_camera(stage: Usd.Stage, camera: UsdGeom.Camera, frame: float, aspect: float) -> None:
     """Point the framing camera at the stage's bounds at `frame` (a default value: still over the shutter)."""
-    xf, near, far = framing_pose(stage_bounds(stage, frame), UsdGeom.GetStageUpAxis(stage), aspect)
+    bounds = stage_bounds(stage, frame) or Gf.Range3d(Gf.Vec3d(-1, -1, -1), Gf.Vec3d(1, 1, 1))
+    xf, near, far = framing_pose(bounds, UsdGeom.GetStageUpAxis(stage), aspect)
     with Usd.EditContext(stage, stage.GetSessionLayer()):
         op = UsdGeom.Xformable(camera).MakeMatrixXform()
         op.Set(Gf.Matrix4d(xf.tolist()))

@@ -38,7 +38,9 @@ class Geometry:
     tri_vertices: wp.array(dtype=wp.vec3i)  # (T,)
     tri_flags: wp.array(dtype=int)          # (T,) bit 0 double-sided, bit 1 smooth
     tri_material: wp.array(dtype=int)       # (T,)
-    tri_colors: wp.array(dtype=wp.vec3)     # (T,) displayColor
+    tri_colors: wp.array(dtype=wp.vec3)     # (3T,) colour primvar at corner k of triangle t (3t + k)
+    tri_uvs: wp.array(dtype=wp.vec2)        # (3T,) texture coordinates at the corners, or (1,) untextured
+    tri_lod: wp.array(dtype=float)          # (T,) log2 texture-coordinate span per pixel, or (1,) untextured
     entry_tri: wp.array(dtype=int)          # (E,)
     entry_k0: wp.array(dtype=int)           # (E,)
     entry_k1: wp.array(dtype=int)           # (E,)
@@ -49,7 +51,7 @@ class Geometry:
 
 @wp.struct
 class Shading:
-    """Materials (M, 12), lights at L+1 knots (L+1, NL, 18), the dome radiance, and shadow maps.
+    """Materials (M, 24; materials.py), lights at L+1 knots (L+1, NL, 18), the dome radiance, and shadow maps.
 
     Shadow maps (see shadow_lookup.py): shadow_maps (slots, S, S, B) depth along each face's
     view axis at the B = shadow_times map instants (instant b at shutter time (b + 0.5) / B);
@@ -74,6 +76,10 @@ class Shading:
     shadow_bias: float         # depth bias, in texels (world size of a texel at the receiver)
     shadow_normal_bias: float  # receiver offset along its normal, in texels
     shadow_pcf: int            # PCF radius in texels (0 = bilinear 2x2)
+    tex_texels: wp.array(dtype=wp.vec4)      # textures.py's layout: all mip levels, linear RGBA
+    tex_levels: wp.array2d(dtype=int)        # (levels, 3) offset, width, height
+    tex_textures: wp.array2d(dtype=int)      # (textures, 4) first level, level count, wrapS, wrapT
+    tex_bindings: wp.array2d(dtype=float)    # (bindings, 10) texture, channel, scale rgba, bias rgba
 
 
 @wp.struct

@@ -7,7 +7,8 @@ Table columns (LIGHT_WIDTH floats per light), read by `shading.py`:
   10-12 half-extent u axis, 13-15 half-extent v axis (for distant and sphere lights: the light's
   unit local x and y axes, which shadow maps use as the light's frame), 16 radius, 17 casts shadows
   (UsdLux `inputs:shadow:enable`, whose fallback is true).
-Irradiance models: distant E = L·cosθ; sphere of radius r at distance d: E = π L (r/d)² cosθ
+Irradiance models: distant E = L π sin²(angle/2) cosθ (UsdLux: a disc of angular diameter
+`inputs:angle`; E = L cosθ with inputs:normalize or angle 0), shadows hard whatever the angle; sphere of radius r at distance d: E = π L (r/d)² cosθ
 (a point light, radius 0, has the intensity of USD's fallback 0.5 radius); rect and disk lights
 are integrated over a fixed 4×4 stratified set of points on the light.
 A DomeLight without texture is the background radiance and a uniform ambient term.
@@ -49,6 +50,17 @@ def _finite_input(light: UsdLux.LightAPI, attr, time: Usd.TimeCode, fallback, wi
                   f"using USD's fallback {fallback}")
         return np.asarray(fallback, np.float64).reshape(width)
     return arr
+
+
+def distant_illuminance_factor(light: UsdLux.DistantLight, normalize: bool, time: Usd.TimeCode) -> float:
+    """Illuminance at normal incidence per unit of a distant light's radiance (UsdLux): the
+    light is a disc of angular diameter `inputs:angle`, so E = L π sin²(angle / 2); with
+    inputs:normalize (or an angle of 0, a delta light) the intensity is the illuminance, E = L."""
+    angle = float(_finite_input(light.LightAPI(), light.GetAngleAttr(), time, 0.53, 1)[0])
+    if normalize or angle <= 0.0:
+        return 1.0
+    half = np.radians(min(angle, 360.0)) / 2.0
+    return float(np.pi * np.sin(min(half, np.pi / 2)) ** 2)
 
 
 def _radiance(light: UsdLux.LightAPI, time: Usd.TimeCode) -> np.ndarray:
@@ -128,6 +140,7 @@ def light_table(lights: list[LightPrim], time: float, cam_from_world: np.ndarray
             row[13:16] = ay / max(np.linalg.norm(ay), 1e-30)
         if lp.kind == DISTANT:
             row[7:10] = az / max(np.linalg.norm(az), 1e-30)
+            radiance = radiance * distant_illuminance_factor(UsdLux.DistantLight(lp.prim), normalize, t)
         elif lp.kind == SPHERE:
             sl = UsdLux.SphereLight(lp.prim)
             scale = float(np.cbrt(abs(np.linalg.det(m_world[:3, :3]))))

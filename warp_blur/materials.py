@@ -2,28 +2,45 @@
 
 Each row of the table (float32, MATERIAL_WIDTH columns) is read by `shading.py`:
 diffuse rgb, emissive rgb, F0 rgb (specular reflectance at normal incidence), roughness,
-use_display_color (1 = diffuse comes from the triangle's displayColor), opacity.
+use_corner_color (1 = diffuse comes from a colour primvar at the triangle's corners, displayColor
+or the one a UsdPrimvarReader names), opacity; then the texture bindings of diffuse, emissive,
+roughness, metallic and opacity (-1 none; see textures.py), the metallic-workflow flag, the
+dielectric F0, metallic, opacityThreshold and a flag that the kernel must evaluate bindings and
+the metallic mix per hit (then diffuse holds the raw diffuseColor).
 The specular F0 follows UsdPreviewSurface: specularColor in the specular workflow, else
 lerp(((ior-1)/(ior+1))^2, diffuseColor, metallic) with the diffuse scaled by (1 - metallic).
-Textures and other connected inputs are not read: the input's fallback is used, with a warning.
+Inputs connected to a UsdUVTexture (coordinates from a UsdPrimvarReader_float2) or, for the
+diffuse colour, a UsdPrimvarReader_float3 are read; other connected nodes give USD's fallback,
+with a warning.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from pxr import Usd, UsdShade
 
 from .log import warn_once
+from .textures import TextureSet
 
-MATERIAL_WIDTH = 12
+MATERIAL_WIDTH = 24
+#: Columns of a material row past the first twelve (see the module docstring).
+COL_BINDINGS = 12          # 12..16: texture binding of diffuse, emissive, roughness, metallic, opacity (-1: none)
+COL_METALLIC_WORKFLOW = 17
+COL_DIELECTRIC_F0 = 18
+COL_METALLIC = 19
+COL_OPACITY_THRESHOLD = 20
+COL_TEXTURED = 21          # 1: the kernel evaluates bindings and the metallic mix per hit
+_BOUND_INPUTS = ("diffuseColor", "emissiveColor", "roughness", "metallic", "opacity")
 #: USD's own UsdPreviewSurface fallbacks.
 FALLBACKS = {
     "diffuseColor": (0.18, 0.18, 0.18), "emissiveColor": (0.0, 0.0, 0.0),
     "specularColor": (0.0, 0.0, 0.0), "useSpecularWorkflow": 0, "roughness": 0.5,
-    "metallic": 0.0, "ior": 1.5, "opacity": 1.0,
+    "metallic": 0.0, "ior": 1.5, "opacity": 1.0, "opacityThreshold": 0.0,
 }
-_READ = set(FALLBACKS) | {"clearcoat", "clearcoatRoughness", "opacityThreshold", "displacement",
-                          "occlusion", "normal"}
+_READ = set(FALLBACKS) | {"clearcoat", "clearcoatRoughness", "displacement", "occlusion", "normal"}
+_TEXTURE_FALLBACK = (0.0, 0.0, 0.0, 1.0)   # UsdUVTexture's own fallback
 
 
 def display_color_row() -> np.ndarray:
@@ -32,25 +49,107 @@ def display_color_row() -> np.ndarray:
     row[9] = 0.5  # roughness (unused: F0 is 0)
     row[10] = 1.0  # use displayColor
     row[11] = 1.0
+    row[COL_BINDINGS:COL_BINDINGS + 5] = -1
     return row
 
 
-def _input_value(shader: UsdShade.Shader, name: str, frame: float, material_path: str):
+def _producer(inp: UsdShade.Input):
+    """The attribute that gives an input its value, through node graphs and interface inputs:
+    (attribute, is a shader output) or (None, False) when nothing does."""
+    attrs = inp.GetValueProducingAttributes()
+    if not attrs:
+        return None, False
+    return attrs[0], UsdShade.Output.IsOutput(attrs[0])
+
+
+def _shader_input(shader: UsdShade.Shader, name: str, frame: float, default):
+    """A node input's value (through connections to interface inputs), else `default`."""
     inp = shader.GetInput(name)
     if not inp:
-        return FALLBACKS[name]
-    if inp.HasConnectedSource():
-        attrs = inp.GetValueProducingAttributes()
-        if attrs and attrs[0].GetPrim() != shader.GetPrim() and UsdShade.Input.IsInput(attrs[0]):
-            value = attrs[0].Get(Usd.TimeCode(frame))
-            if value is not None:
-                return _finite(value, name, material_path)
-        warn_once(f"connected:{material_path}:{name}",
-                  f"material {material_path}: input '{name}' is connected (texture or node graph), "
-                  f"which warp_blur does not evaluate; using USD's fallback {FALLBACKS[name]}")
-        return FALLBACKS[name]
-    value = inp.Get(Usd.TimeCode(frame))
-    return FALLBACKS[name] if value is None else _finite(value, name, material_path)
+        return default
+    attr, is_output = _producer(inp)
+    if attr is None or is_output:
+        return default
+    value = attr.Get(Usd.TimeCode(frame))
+    return default if value is None else value
+
+
+class _Source:
+    """Where a UsdPreviewSurface input comes from: a constant, a texture binding, or a primvar."""
+
+    def __init__(self, value=None, binding: int = -1, primvar: str | None = None, st: str | None = None):
+        self.value, self.binding, self.primvar, self.st = value, binding, primvar, st
+
+
+def _input_source(shader: UsdShade.Shader, name: str, frame: float, material_path: str,
+                  textures: TextureSet) -> _Source:
+    inp = shader.GetInput(name)
+    if not inp:
+        return _Source(FALLBACKS[name])
+    attr, is_output = _producer(inp)
+    if attr is None:
+        return _Source(FALLBACKS[name])
+    if not is_output:
+        value = attr.Get(Usd.TimeCode(frame))
+        return _Source(FALLBACKS[name] if value is None else _finite(value, name, material_path))
+    node = UsdShade.Shader(attr.GetPrim())
+    node_id = node.GetIdAttr().Get() if node else None
+    output = UsdShade.Output(attr).GetBaseName()
+    if node_id == "UsdUVTexture" and name in _BOUND_INPUTS:
+        return _texture_source(node, output, name, frame, material_path, textures)
+    if node_id in ("UsdPrimvarReader_float3", "UsdPrimvarReader_float4") and name in ("diffuseColor",):
+        varname = str(_shader_input(node, "varname", frame, "") or "")
+        if varname:
+            return _Source(FALLBACKS[name], primvar=varname)
+    fallback = _finite(_shader_input(node, "fallback", frame, FALLBACKS[name]), name, material_path) \
+        if node_id and node_id.startswith("UsdPrimvarReader") else FALLBACKS[name]
+    warn_once(f"connected:{material_path}:{name}",
+              f"material {material_path}: input '{name}' comes from a {node_id or 'node'} that warp_blur does not "
+              f"evaluate; using {fallback}")
+    return _Source(fallback)
+
+
+def _texture_source(node: UsdShade.Shader, output: str, name: str, frame: float, material_path: str,
+                    textures: TextureSet) -> _Source:
+    """A UsdUVTexture feeding `name` through output rgb/r/g/b/a: a binding, or its fallback."""
+    get = lambda n, d: _shader_input(node, n, frame, d)  # noqa: E731
+    fallback = np.asarray(get("fallback", _TEXTURE_FALLBACK), np.float64).reshape(-1)
+    fallback = np.resize(fallback, 4) if fallback.size else np.asarray(_TEXTURE_FALLBACK)
+    channel_value = {"rgb": fallback[:3], "r": fallback[0], "g": fallback[1], "b": fallback[2], "a": fallback[3]}
+    const = channel_value.get(output, fallback[:3])
+    if np.ndim(const) == 0 and np.ndim(FALLBACKS[name]) == 1:
+        const = (float(const),) * 3
+    elif np.ndim(const) == 1 and np.ndim(FALLBACKS[name]) == 0:
+        const = float(const[0])
+    asset = get("file", None)
+    resolved = getattr(asset, "resolvedPath", "") if asset is not None else ""
+    if not resolved:
+        warn_once(f"texfile:{material_path}:{name}",
+                  f"material {material_path}: the texture for '{name}' has no file that resolves "
+                  f"({getattr(asset, 'path', asset)}); using its fallback")
+        return _Source(_finite(const, name, material_path))
+    if "<UDIM>" in resolved or "<UDIM>" in getattr(asset, "path", ""):
+        warn_once(f"udim:{material_path}", f"material {material_path}: UDIM textures are not read; using the fallback")
+        return _Source(_finite(const, name, material_path))
+    st_name = "st"
+    st_in = node.GetInput("st")
+    if st_in:
+        st_attr, st_is_output = _producer(st_in)
+        if st_attr is not None and st_is_output:
+            reader = UsdShade.Shader(st_attr.GetPrim())
+            st_name = str(_shader_input(reader, "varname", frame, "st") or "st")
+    space = str(get("sourceColorSpace", "auto"))
+    added = textures.add_texture(resolved, space, str(get("wrapS", "useMetadata")), str(get("wrapT", "useMetadata")))
+    if added is None:
+        return _Source(_finite(const, name, material_path))
+    scale = np.resize(np.asarray(get("scale", (1.0, 1.0, 1.0, 1.0)), np.float64).reshape(-1), 4)
+    bias = np.resize(np.asarray(get("bias", (0.0, 0.0, 0.0, 0.0)), np.float64).reshape(-1), 4)
+    if not (np.isfinite(scale).all() and np.isfinite(bias).all()):
+        warn_once(f"texscale:{material_path}:{name}", f"material {material_path}: texture scale/bias for '{name}' "
+                                                      f"is not finite; using 1 and 0")
+        scale, bias = np.ones(4), np.zeros(4)
+    binding = textures.add_binding(added[0], output, scale, bias)
+    return _Source(_finite(const, name, material_path), binding=binding, st=st_name)
 
 
 def _finite(value, name: str, material_path: str):
@@ -69,8 +168,19 @@ def _finite(value, name: str, material_path: str):
     return FALLBACKS[name]
 
 
-def preview_surface_row(material: UsdShade.Material, frame: float) -> np.ndarray | None:
-    """The table row for a bound material, or None when it has no UsdPreviewSurface."""
+@dataclass
+class MaterialReads:
+    """What a material needs from the prims it is bound to: the primvar of its texture
+    coordinates (None: untextured) and of its diffuse colour (None: not from a primvar)."""
+
+    st: str | None = None
+    color: str | None = None
+
+
+def preview_surface_row(material: UsdShade.Material, frame: float,
+                        textures: TextureSet) -> tuple[np.ndarray, MaterialReads] | None:
+    """The table row for a bound material and the primvars it reads, or None when it has no
+    UsdPreviewSurface."""
     path = str(material.GetPath())
     surface = material.ComputeSurfaceSource()
     shader = surface[0] if surface else None
@@ -81,27 +191,39 @@ def preview_surface_row(material: UsdShade.Material, frame: float) -> np.ndarray
         if inp.GetBaseName() not in _READ:
             warn_once(f"input:{path}:{inp.GetBaseName()}",
                       f"material {path}: input '{inp.GetBaseName()}' is not read by warp_blur")
-    get = lambda n: _input_value(shader, n, frame, path)  # noqa: E731
-    diffuse = np.asarray(get("diffuseColor"), np.float64)
-    emissive = np.asarray(get("emissiveColor"), np.float64)
-    roughness = float(get("roughness"))
-    opacity = float(get("opacity"))
-    if opacity < 1.0:
-        warn_once(f"opacity:{path}", f"material {path}: opacity {opacity} < 1 is not supported (rendered opaque)")
-    if int(get("useSpecularWorkflow")):
+    src = {n: _input_source(shader, n, frame, path, textures) for n in _BOUND_INPUTS}
+    get = lambda n: _input_source(shader, n, frame, path, textures).value  # noqa: E731
+    diffuse = np.asarray(src["diffuseColor"].value, np.float64)
+    emissive = np.asarray(src["emissiveColor"].value, np.float64)
+    roughness = float(src["roughness"].value)
+    opacity = float(src["opacity"].value)
+    threshold = float(get("opacityThreshold"))
+    if opacity < 1.0 or src["opacity"].binding >= 0:
+        warn_once(f"opacity:{path}", f"material {path}: opacity (< 1 or textured) is not supported (rendered opaque)")
+    textured = any(s.binding >= 0 for s in src.values()) or src["diffuseColor"].primvar is not None
+    specular_workflow = bool(int(get("useSpecularWorkflow")))
+    metallic = float(np.clip(src["metallic"].value, 0.0, 1.0))
+    ior = float(get("ior"))
+    dielectric = ((ior - 1.0) / (ior + 1.0)) ** 2
+    if specular_workflow:
         f0 = np.asarray(get("specularColor"), np.float64)
     else:
-        metallic = float(np.clip(get("metallic"), 0.0, 1.0))
-        ior = float(get("ior"))
-        dielectric = ((ior - 1.0) / (ior + 1.0)) ** 2
         f0 = (1.0 - metallic) * dielectric + metallic * diffuse
-        diffuse = diffuse * (1.0 - metallic)
+        if not textured:   # a textured material mixes per hit, from its raw diffuse
+            diffuse = diffuse * (1.0 - metallic)
     row = np.zeros(MATERIAL_WIDTH, np.float32)
     row[0:3], row[3:6], row[6:9] = diffuse, emissive, f0
     row[9] = np.clip(roughness, 0.02, 1.0)
-    row[10] = 0.0
+    row[10] = 1.0 if src["diffuseColor"].primvar is not None else 0.0
     row[11] = opacity
-    return row
+    row[COL_BINDINGS:COL_BINDINGS + 5] = [src[n].binding for n in _BOUND_INPUTS]
+    row[COL_METALLIC_WORKFLOW] = 0.0 if specular_workflow else 1.0
+    row[COL_DIELECTRIC_F0] = dielectric
+    row[COL_METALLIC] = metallic
+    row[COL_OPACITY_THRESHOLD] = threshold
+    row[COL_TEXTURED] = 1.0 if textured else 0.0
+    st = next((s.st for s in src.values() if s.binding >= 0 and s.st), None)
+    return row, MaterialReads(st=st, color=src["diffuseColor"].primvar)
 
 
 class MaterialTable:
@@ -111,6 +233,8 @@ class MaterialTable:
         self.frame = frame
         self.rows: list[np.ndarray] = [display_color_row()]
         self.names: list[str] = ["<displayColor>"]
+        self.reads: list[MaterialReads] = [MaterialReads(color="displayColor")]
+        self.textures = TextureSet()
         self._index: dict[str, int] = {}
 
     def index_for_prim(self, prim: Usd.Prim) -> int:
@@ -120,12 +244,13 @@ class MaterialTable:
             return 0
         key = str(material.GetPath())
         if key not in self._index:
-            row = preview_surface_row(material, self.frame)
-            if row is None:
+            made = preview_surface_row(material, self.frame, self.textures)
+            if made is None:
                 self._index[key] = 0
             else:
                 self._index[key] = len(self.rows)
-                self.rows.append(row)
+                self.rows.append(made[0])
+                self.reads.append(made[1])
                 self.names.append(key)
         return self._index[key]
 
@@ -135,4 +260,5 @@ class MaterialTable:
     def emissive_only(self) -> np.ndarray:
         """(M,) bool: radiance cannot depend on lights (black diffuse and specular)."""
         a = self.array()
-        return (np.abs(a[:, 0:3]).max(axis=1) == 0) & (np.abs(a[:, 6:9]).max(axis=1) == 0) & (a[:, 10] == 0)
+        return ((np.abs(a[:, 0:3]).max(axis=1) == 0) & (np.abs(a[:, 6:9]).max(axis=1) == 0) & (a[:, 10] == 0)
+                & (a[:, COL_TEXTURED] == 0))

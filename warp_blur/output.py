@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import socket
 import tempfile
 
 import numpy as np
@@ -33,12 +34,39 @@ def _check_target(path: str) -> str:
     return folder
 
 
+TEMP_PREFIX = ".tmp-warp_blur-"
+
+
+def temporary_prefix() -> str:
+    """Temporaries are named `.tmp-warp_blur-HOST-PID-…`: a later run removes only those whose
+    owner (this host's process PID) is gone, never a live run's file (batch.remove_stale_temporaries)."""
+    return f"{TEMP_PREFIX}{socket.gethostname().replace('-', '_')}-{os.getpid()}-"
+
+
+def _umask_mode() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+def check_writable(path: str) -> None:
+    """Fail now (UserError) when the output's folder cannot be created or written to."""
+    folder = _check_target(path)
+    try:
+        fd, probe = tempfile.mkstemp(prefix=temporary_prefix(), dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise UserError(f"cannot write to the output folder {folder}: {exc.strerror or exc}") from None
+
+
 def _atomic(path: str, write) -> None:
     folder = _check_target(path)
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.splitext(path)[1], dir=folder)
+    fd, tmp = tempfile.mkstemp(prefix=temporary_prefix(), suffix=os.path.splitext(path)[1], dir=folder)
     os.close(fd)
     try:
         write(tmp)
+        os.chmod(tmp, _umask_mode())   # mkstemp makes 0600: give the mode the user's umask gives
         os.replace(tmp, path)
     except OSError as exc:
         if os.path.exists(tmp):
@@ -138,7 +166,12 @@ def write_exr_channels(path: str, channels: dict[str, np.ndarray], header: dict 
 
 
 def output_fingerprint_write(path: str, result, compression: str, fingerprint: str) -> None:
-    """Write a frame carrying its settings fingerprint (EXR header / PNG text chunk) for --resume."""
+    """Write a frame carrying its settings fingerprint (EXR header / PNG text chunk) for --resume.
+    A frame with a non-finite pixel is never written (an internal error, reported for the frame)."""
+    aovs_ok = all(not np.isnan(a).any() if name == "Z" else np.isfinite(a).all()   # Z is +inf where nothing is seen
+                  for name, a in result.aovs.items())
+    if not np.isfinite(result.rgba).all() or not aovs_ok:
+        raise RuntimeError(f"frame {result.metadata.get('frame')} has non-finite pixels; nothing written")
     if os.path.splitext(path)[1].lower() == ".exr":
         write_exr(path, result, compression, {"warp_blur.fingerprint": fingerprint})
     else:

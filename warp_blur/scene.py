@@ -19,7 +19,8 @@ from .lights import dome_radiance, find_lights, headlight_table, light_table
 from .log import warn_once
 from .materials import MaterialTable
 from .stage import Shutter
-from .tessellate import tessellate_gprim, triangulate
+from .primvars import corner_primvar
+from .tessellate import tessellate_gprim, triangulate_corners
 
 FLAG_DOUBLE_SIDED = 1
 FLAG_SMOOTH = 2
@@ -40,7 +41,8 @@ class GeomUnit:
     points_at: Callable[[float], np.ndarray]          # time -> (N, 3) float64 local points
     transforms_at: Callable[[float, UsdGeom.XformCache], np.ndarray]  # -> (I, 4, 4) float64
     num_instances: int
-    tri_colors: np.ndarray            # (T, 3) float32 displayColor per triangle
+    corner_colors: np.ndarray         # (T, 3, 3) float32 colour primvar (displayColor) at each triangle corner
+    corner_uvs: np.ndarray | None     # (T, 3, 2) float32 texture coordinates at each corner, or None
     material: int
     flags: int
     blur_scale: float = 1.0
@@ -68,34 +70,9 @@ class Snapshot:
     cam_from_world: np.ndarray
 
 
-def _display_colors(prim: Usd.Prim, time: Usd.TimeCode, face_of_tri: np.ndarray, tris: np.ndarray,
-                    counts: np.ndarray | None) -> np.ndarray:
-    """(T, 3) displayColor per triangle (grey 0.5 when absent, as UsdImaging does)."""
-    n = len(tris)
-    default = np.full((n, 3), 0.5, np.float32)
-    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor")
-    if not pv or not pv.HasValue():
-        return default
-    vals = pv.ComputeFlattened(time)
-    if vals is None or len(vals) == 0:
-        return default
-    vals = np.asarray(vals, np.float32).reshape(-1, 3)
-    interp = pv.GetInterpolation()
-    try:
-        if interp == UsdGeom.Tokens.constant or len(vals) == 1:
-            return np.broadcast_to(vals[0], (n, 3)).copy()
-        if interp == UsdGeom.Tokens.uniform:
-            return vals[face_of_tri]
-        if interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
-            return vals[tris].mean(axis=1)
-        if interp == UsdGeom.Tokens.faceVarying and counts is not None:
-            starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-            face_avg = np.stack([vals[s:s + c].mean(axis=0) for s, c in zip(starts, counts)])
-            return face_avg[face_of_tri]
-    except IndexError:
-        pass
-    warn_once(f"displayColor:{prim.GetPath()}", f"{prim.GetPath()}: displayColor does not match the topology; using grey")
-    return default
+def _grey_corners(n: int) -> np.ndarray:
+    """(n, 3, 3) float32 mid grey, UsdImaging's displayColor when none is authored."""
+    return np.full((n, 3, 3), 0.5, np.float32)
 
 
 class Scene:
@@ -175,10 +152,29 @@ class Scene:
         if len(indices) and (indices.min() < 0 or indices.max() >= npts):
             bad = int(indices[(indices < 0) | (indices >= npts)][0])
             return None if self._invalid(path, f"face index {bad} out of range (mesh has {npts} points)") else None
-        tris, face_of_tri = triangulate(counts, indices, holes, left)
+        tris, face_of_tri, corners = triangulate_corners(counts, indices, holes, left)
         scheme = mesh.GetSubdivisionSchemeAttr().Get(t)
         smooth = scheme not in (None, UsdGeom.Tokens.none)
-        return tris, face_of_tri, counts, npts, smooth
+        return tris, face_of_tri, corners, npts, smooth
+
+    def _surface_primvars(self, prim: Usd.Prim, t: Usd.TimeCode, material: int, tris: np.ndarray,
+                          face_of_tri: np.ndarray, corners: np.ndarray | None):
+        """(corner colours (T, 3, 3), corner texture coordinates (T, 3, 2) or None) that the
+        prim's material reads (its colour primvar, displayColor by default; its `st`)."""
+        reads = self.materials.reads[material]
+        colors = None
+        if reads.color:
+            colors = corner_primvar(prim, reads.color, t, tris, face_of_tri, corners, 3)
+        if colors is None:
+            colors = _grey_corners(len(tris))
+        uvs = None
+        if reads.st:
+            uvs = corner_primvar(prim, reads.st, t, tris, face_of_tri, corners, 2)
+            if uvs is None:
+                warn_once(f"st:{prim.GetPath()}", f"{prim.GetPath()}: its material's textures read primvar "
+                                                  f"'{reads.st}', which it does not have; texturing at (0, 0)")
+                uvs = np.zeros((len(tris), 3, 2), np.float32)
+        return colors, uvs
 
     def _points_fn(self, prim: Usd.Prim, npts: int) -> Callable[[float], np.ndarray]:
         """Local points at a time: USD's interpolation, velocities/accelerations applied by USD."""
@@ -265,7 +261,7 @@ class Scene:
         topo = self._mesh_topology(prim, t)
         if topo is None:
             return
-        tris, face_of_tri, counts, npts, smooth = topo
+        tris, face_of_tri, corners, npts, smooth = topo
         path = str(prim.GetPath())
         skin = self._skinning(prim)
         points_at = self._skinned_points_fn(prim, npts, skin) if skin else self._points_fn(prim, npts)
@@ -281,25 +277,26 @@ class Scene:
         material, flags, blur = self._common(prim, t)
         if smooth:
             flags |= FLAG_SMOOTH
+        colors, uvs = self._surface_primvars(prim, t, material, tris, face_of_tri, corners)
         self.units.append(GeomUnit(
             path=path, prim=prim, local_tris=tris, num_points=npts, points_at=points_at,
             transforms_at=self._prim_transform_fn(xform_prim), num_instances=1,
-            tri_colors=_display_colors(prim, t, face_of_tri, tris, counts), material=material,
+            corner_colors=colors, corner_uvs=uvs, material=material,
             flags=flags, blur_scale=blur, visibility_prims=[prim]))
 
     def _add_gprim(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
         out = tessellate_gprim(prim, t)
         if out is None:
             return
-        pts, tris, smooth = out
+        pts, tris, smooth, face_of_tri, corners = out
         material, flags, blur = self._common(prim, t)
         if smooth:
             flags |= FLAG_SMOOTH
-        face_of_tri = np.arange(len(tris))
+        colors, uvs = self._surface_primvars(prim, t, material, tris, face_of_tri, corners)
         self.units.append(GeomUnit(
             path=str(prim.GetPath()), prim=prim, local_tris=tris, num_points=len(pts),
             points_at=lambda time, p=pts: p, transforms_at=self._prim_transform_fn(prim), num_instances=1,
-            tri_colors=_display_colors(prim, t, face_of_tri, tris, None), material=material,
+            corner_colors=colors, corner_uvs=uvs, material=material,
             flags=flags, blur_scale=blur, visibility_prims=[prim]))
 
     def _add_instancer(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
@@ -335,22 +332,21 @@ class Scene:
                     topo = self._mesh_topology(sub, t)
                     if topo is None:
                         continue
-                    tris, face_of_tri, counts, npts, smooth = topo
+                    tris, face_of_tri, corners, npts, smooth = topo
                     points_at = self._points_fn(sub, npts)
-                    colors = _display_colors(sub, t, face_of_tri, tris, counts)
                 elif any(sub.IsA(c) for c in _IMPLICIT):
                     out = tessellate_gprim(sub, t)
                     if out is None:
                         continue
-                    pts, tris, smooth = out
+                    pts, tris, smooth, face_of_tri, corners = out
                     npts = len(pts)
                     points_at = lambda time, p=pts: p  # noqa: E731
-                    colors = _display_colors(sub, t, np.arange(len(tris)), tris, None)
                 else:
                     continue
                 if len(tris) == 0:
                     continue
                 material, flags, blur = self._common(sub, t)
+                colors, uvs = self._surface_primvars(sub, t, material, tris, face_of_tri, corners)
                 if smooth:
                     flags |= FLAG_SMOOTH
 
@@ -365,12 +361,12 @@ class Scene:
                 self.units.append(GeomUnit(
                     path=f"{path}[{proto_path.name}]{sub.GetPath()}", prim=sub, local_tris=tris,
                     num_points=npts, points_at=points_at, transforms_at=transforms_at,
-                    num_instances=len(sel), tri_colors=colors, material=material, flags=flags,
+                    num_instances=len(sel), corner_colors=colors, corner_uvs=uvs, material=material, flags=flags,
                     blur_scale=blur, visibility_prims=[prim, sub]))
 
     # ----------------------------------------------------------------------------- tables
     def _build_tables(self) -> None:
-        tris, colors, mats, flags, unit_of_tri, objects = [], [], [], [], [], []
+        tris, colors, uvs, mats, flags, unit_of_tri, objects = [], [], [], [], [], [], []
         self.unit_vertex_offsets = []
         v = 0
         num_objects = 0
@@ -379,7 +375,9 @@ class Scene:
             for i in range(u.num_instances):
                 tris.append(u.local_tris + v + i * u.num_points)
             n = len(u.local_tris) * u.num_instances
-            colors.append(np.tile(u.tri_colors, (u.num_instances, 1)))
+            colors.append(np.tile(u.corner_colors.reshape(-1, 3), (u.num_instances, 1)))
+            unit_uvs = u.corner_uvs if u.corner_uvs is not None else np.zeros((len(u.local_tris), 3, 2), np.float32)
+            uvs.append(np.tile(unit_uvs.reshape(-1, 2), (u.num_instances, 1)))
             mats.append(np.full(n, u.material, np.int32))
             flags.append(np.full(n, u.flags, np.int32))
             unit_of_tri.append(np.full(n, ui, np.int32))
@@ -389,7 +387,9 @@ class Scene:
         self.num_vertices = v
         cat = lambda a, shape, dt: np.concatenate(a).astype(dt) if a else np.zeros(shape, dt)  # noqa: E731
         self.tri_vertices = cat(tris, (0, 3), np.int32)
-        self.tri_colors = cat(colors, (0, 3), np.float32)
+        self.corner_colors = cat(colors, (0, 3), np.float32)   # (3T, 3) corner 3t + k of triangle t
+        self.corner_uvs = cat(uvs, (0, 2), np.float32)         # (3T, 2)
+        self.textured = any(u.corner_uvs is not None for u in self.units)
         self.tri_material = cat(mats, (0,), np.int32)
         self.tri_flags = cat(flags, (0,), np.int32)
         self.tri_unit = cat(unit_of_tri, (0,), np.int32)

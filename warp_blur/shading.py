@@ -18,6 +18,7 @@ from .kernel_types import Geometry, Shading, View
 from .rays import entry_normal, entry_vertex
 from .light_table import light_value, light_vec
 from .shadow_lookup import light_visibility
+from .texture_lookup import binding_value
 
 PI = wp.constant(3.14159265358979)
 
@@ -145,12 +146,33 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
     m = geo.tri_material[tri]
     emissive = wp.vec3(sh.materials[m, 3], sh.materials[m, 4], sh.materials[m, 5])
     diffuse = wp.vec3(sh.materials[m, 0], sh.materials[m, 1], sh.materials[m, 2])
+    wb = hit[2]
+    wc = hit[3]
     if sh.materials[m, 10] > 0.5:
-        diffuse = geo.tri_colors[tri]
+        diffuse = (1.0 - wb - wc) * geo.tri_colors[3 * tri] + wb * geo.tri_colors[3 * tri + 1] + wc * geo.tri_colors[3 * tri + 2]
     f0 = wp.vec3(sh.materials[m, 6], sh.materials[m, 7], sh.materials[m, 8])
+    roughness = sh.materials[m, 9]
+    if sh.materials[m, 21] > 0.5:   # textured: inputs per hit, then UsdPreviewSurface's metallic mix
+        uv = wp.vec2(0.0, 0.0)
+        lod = float(-30.0)
+        if geo.tri_uvs.shape[0] >= 3 * tri + 3:
+            uv = (1.0 - wb - wc) * geo.tri_uvs[3 * tri] + wb * geo.tri_uvs[3 * tri + 1] + wc * geo.tri_uvs[3 * tri + 2]
+            lod = geo.tri_lod[tri]
+        if sh.materials[m, 12] >= 0.0:
+            diffuse = binding_value(sh, int(sh.materials[m, 12]), uv, lod)
+        if sh.materials[m, 13] >= 0.0:
+            emissive = binding_value(sh, int(sh.materials[m, 13]), uv, lod)
+        if sh.materials[m, 14] >= 0.0:
+            roughness = wp.clamp(binding_value(sh, int(sh.materials[m, 14]), uv, lod)[0], 0.02, 1.0)
+        metallic = sh.materials[m, 19]
+        if sh.materials[m, 15] >= 0.0:
+            metallic = wp.clamp(binding_value(sh, int(sh.materials[m, 15]), uv, lod)[0], 0.0, 1.0)
+        if sh.materials[m, 17] > 0.5:
+            dielectric = sh.materials[m, 18]
+            f0 = (1.0 - metallic) * wp.vec3(dielectric, dielectric, dielectric) + metallic * diffuse
+            diffuse = diffuse * (1.0 - metallic)
     if wp.length(diffuse) == 0.0 and wp.length(f0) == 0.0:
         return emissive
-    roughness = sh.materials[m, 9]
     vi = geo.tri_vertices[tri]
     a = entry_vertex(geo, e, vi[0], alpha)
     b = entry_vertex(geo, e, vi[1], alpha)
@@ -163,8 +185,6 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
     flags = geo.tri_flags[tri]
     n = ng
     if (flags & 2) != 0:
-        wb = hit[2]
-        wc = hit[3]
         ns = (1.0 - wb - wc) * entry_normal(geo, e, vi[0], alpha) + wb * entry_normal(geo, e, vi[1], alpha) + wc * entry_normal(geo, e, vi[2], alpha)
         if wp.length(ns) > 0.0:
             n = wp.normalize(ns)

@@ -767,4 +767,5 @@ def lit_materials(material_table: np.ndarray, tri_material: np.ndarray) -> bool:
     if len(tri_material) == 0:
         return False
     rows = material_table[np.unique(tri_material)]
-    return bool(((rows[:, 10] > 0.5) | (np.abs(rows[:, 0:3]).sum(axis=1) > 0) | (np.abs(rows[:, 6:9]).sum(axis=1) > 0)).any())
+    return bool(((rows[:, 10] > 0.5) | (rows[:, 21] > 0.5) | (np.abs(rows[:, 0:3]).sum(axis=1) > 0)
+                 | (np.abs(rows[:, 6:9]).sum(axis=1) > 0)).any())

@@ -120,8 +120,28 @@ def projection_at(camera: UsdGeom.Camera, frame: float, resolution: tuple[int, i
     near, far = gf_cam.clippingRange.min, gf_cam.clippingRange.max
     if not (near > 0 and far > near and math.isfinite(near)):
         raise StageError(f"camera {camera.GetPath()} has an invalid clipping range ({near}, {far})")
+    check_intrinsics(camera, gf_cam)
     return Projection(orthographic=gf_cam.projection == Gf.Camera.Orthographic, window=win,
                       near=float(near), far=float(far), width=w, height=h)
+
+
+def check_intrinsics(camera: UsdGeom.Camera, gf_cam: Gf.Camera) -> None:
+    """Camera intrinsics a projection can be built from: finite, positive focal length and
+    apertures, finite offsets within a sane bound (else a StageError naming the attribute)."""
+    path = camera.GetPath()
+    values = {"focalLength": gf_cam.focalLength, "horizontalAperture": gf_cam.horizontalAperture,
+              "verticalAperture": gf_cam.verticalAperture}
+    for name, v in values.items():
+        if not (math.isfinite(v) and 0 < v < 1e12):
+            raise StageError(f"camera {path} has an invalid {name} ({v}): it must be a finite positive number")
+    for name, v in (("horizontalApertureOffset", gf_cam.horizontalApertureOffset),
+                    ("verticalApertureOffset", gf_cam.verticalApertureOffset)):
+        if not (math.isfinite(v) and abs(v) < 1e6 * max(values["horizontalAperture"], values["verticalAperture"])):
+            raise StageError(f"camera {path} has an invalid {name} ({v})")
+
+
+#: The widest shutter accepted, in time codes: wider ones ask for unbounded motion sampling.
+MAX_SHUTTER_SPAN = 1000.0
 
 
 def conform_policy(stage: Usd.Stage) -> str:
@@ -167,12 +187,25 @@ def shutter_for_frame(stage: Usd.Stage, camera: UsdGeom.Camera, frame: float,
             warn_once(f"shutter:{camera.GetPath()}",
                       f"camera {camera.GetPath()} has no authored shutter: USD's fallback [0, 0] renders a sharp frame "
                       f"(use --shutter OPEN:CLOSE to blur)")
-        o = float(open_attr.Get(Usd.TimeCode(frame)) or 0.0)
-        c = float(close_attr.Get(Usd.TimeCode(frame)) or 0.0)
+        o, c = _shutter_value(open_attr, frame), _shutter_value(close_attr, frame)
+    if not (math.isfinite(o) and math.isfinite(c)):
+        raise StageError(f"camera {camera.GetPath()} has a non-finite shutter ({o}, {c})")
+    if abs(o) > MAX_SHUTTER_SPAN or abs(c) > MAX_SHUTTER_SPAN or c - o > MAX_SHUTTER_SPAN:
+        raise StageError(f"shutter [{o:g}, {c:g}] is wider than {MAX_SHUTTER_SPAN:g} frames around the frame "
+                         f"(check the camera's shutter:open/close or --shutter)")
     if c < o:
         warn_once(f"shutter-neg:{camera.GetPath()}:{o}:{c}",
                   f"shutter close ({c}) is before open ({o}): no exposure, the frame is black")
     return Shutter(frame + o, frame + c)
+
+
+def _shutter_value(attr: Usd.Attribute, frame: float) -> float:
+    """A shutter offset as a float (0 when unauthored; NaN when not a number, refused later)."""
+    value = attr.Get(Usd.TimeCode(frame))
+    try:
+        return float(value) if value is not None else 0.0
+    except (TypeError, ValueError):
+        return math.nan
 
 
 def parse_shutter(text: str) -> tuple[float, float]:
@@ -204,6 +237,9 @@ _NUM = r"[-+]?(?:\d+(?:\.\d*)?|\.\d+)"
 _FRAME_SPEC = re.compile(rf"{_NUM}(?::{_NUM}(?:x{_NUM})?)?")
 
 
+MAX_FRAMES = 100_000
+
+
 def parse_frames(spec: str) -> list[float]:
     """usdrecord frame specs: '1:24', '1:24x2', '1,5,9' (parsed by USD's own TimeCodeRange).
 
@@ -221,6 +257,11 @@ def parse_frames(spec: str) -> list[float]:
             raise UserError(f"bad frame spec '{spec}': expected e.g. 1:24, 1:24x2 or 1,5,9") from None
         if not rng.IsValid():
             raise UserError(f"bad frame spec '{spec}'")
+        stride = rng.stride
+        count = 1 if stride == 0 else math.floor((rng.endTimeCode.GetValue() - rng.startTimeCode.GetValue())
+                                                 / stride + 1e-9) + 1
+        if count + len(frames) > MAX_FRAMES:
+            raise UserError(f"frame spec '{spec}' selects {count:,} frames (at most {MAX_FRAMES:,} per run)")
         frames.extend(float(t.GetValue()) for t in rng)
     if not frames:
         raise UserError(f"frame spec '{spec}' selects no frame")

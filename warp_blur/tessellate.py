@@ -8,7 +8,15 @@ from pxr import Usd, UsdGeom
 
 def triangulate(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray | None = None,
                 left_handed: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Fan-triangulate polygons. Returns (tris (T,3) int32, face index of each triangle (T,)).
+    """Fan-triangulate polygons. Returns (tris (T,3) int32, face index of each triangle (T,))."""
+    tris, face_of_tri, _ = triangulate_corners(counts, indices, holes, left_handed)
+    return tris, face_of_tri
+
+
+def triangulate_corners(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray | None = None,
+                        left_handed: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Fan-triangulate polygons. Returns (tris (T,3) int32, face index of each triangle (T,),
+    face-vertex position of each triangle corner (T,3) int64, for faceVarying primvars).
 
     Faces with fewer than 3 vertices and hole faces are skipped; leftHanded winding is flipped so
     that every triangle winds counter-clockwise around its front-face normal.
@@ -29,10 +37,17 @@ def triangulate(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray | Non
     first_tri = np.concatenate([[0], np.cumsum(n_tri)[:-1]]) if len(n_tri) else np.zeros(0, np.int64)
     k = np.arange(len(face_of_tri)) - np.repeat(first_tri, n_tri) + 1
     s = starts[face_of_tri]
-    tris = np.stack([indices[s], indices[s + k], indices[s + k + 1]], axis=1)
+    corners = np.stack([s, s + k, s + k + 1], axis=1)
     if left_handed:
-        tris = tris[:, [0, 2, 1]]
-    return tris.astype(np.int32), face_of_tri
+        corners = corners[:, [0, 2, 1]]
+    return indices[corners].astype(np.int32), face_of_tri, corners
+
+
+#: USD's cube (UsdImaging / GeomUtil's cuboid): points of a unit cube and its six quads in the
+#: order per-face (uniform) primvars follow: +Z, -Z, +Y, -Y, +X, -X.
+CUBE_POINTS = np.array([(0.5, 0.5, 0.5), (-0.5, 0.5, 0.5), (-0.5, -0.5, 0.5), (0.5, -0.5, 0.5),
+                        (-0.5, -0.5, -0.5), (-0.5, 0.5, -0.5), (0.5, 0.5, -0.5), (0.5, -0.5, -0.5)], np.float64)
+CUBE_INDICES = np.array([0, 1, 2, 3, 4, 5, 6, 7, 0, 6, 5, 1, 4, 7, 3, 2, 0, 3, 7, 6, 4, 2, 1, 5], np.int64)
 
 
 def _axis_rotation(axis: str) -> np.ndarray:
@@ -45,15 +60,30 @@ def _axis_rotation(axis: str) -> np.ndarray:
     return np.eye(4)
 
 
-def tessellate_gprim(prim: Usd.Prim, time: Usd.TimeCode) -> tuple[np.ndarray, np.ndarray, bool] | None:
-    """(points (N,3) float64, tris (T,3) int32, smooth) for an implicit gprim, or None if unknown."""
+def tessellate_gprim(prim: Usd.Prim, time: Usd.TimeCode) -> tuple | None:
+    """(points (N,3) float64, tris (T,3) int32, smooth, face of each triangle (T,), face-vertex
+    position of each corner (T,3) or None) for an implicit gprim, or None if unknown. The cube
+    has USD's own faces (primvars of every interpolation apply); the other shapes' faces are
+    their triangles."""
+    out = _tessellate(prim, time)
+    if out is None:
+        return None
+    pts, tris, smooth = out
+    if prim.IsA(UsdGeom.Cube):
+        tris, face_of_tri, corners = triangulate_corners(np.full(6, 4), CUBE_INDICES)
+        return pts, tris, smooth, face_of_tri, corners
+    return pts, tris, smooth, np.arange(len(tris)), None
+
+
+def _tessellate(prim: Usd.Prim, time: Usd.TimeCode) -> tuple[np.ndarray, np.ndarray, bool] | None:
     import trimesh   # imported where used: it costs ~0.6 s at start-up
 
     mesh: "trimesh.Trimesh"
     smooth = False
-    if prim.IsA(UsdGeom.Cube):
+    if prim.IsA(UsdGeom.Cube):   # USD's own topology, so per-face and per-vertex primvars line up
         size = float(UsdGeom.Cube(prim).GetSizeAttr().Get(time))
-        mesh = trimesh.creation.box(extents=(size, size, size))
+        tris, _ = triangulate(np.full(6, 4), CUBE_INDICES)
+        return CUBE_POINTS * size, tris, False
     elif prim.IsA(UsdGeom.Sphere):
         r = float(UsdGeom.Sphere(prim).GetRadiusAttr().Get(time))
         mesh = trimesh.creation.icosphere(subdivisions=3, radius=r)

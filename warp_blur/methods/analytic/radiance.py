@@ -47,7 +47,7 @@ def span_radiance(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: 
 def entry_emissive_only(geo: Geometry, sh: Shading, e: int) -> int:
     """1 when entry e's material reflects nothing (its radiance is its constant emission)."""
     mat = geo.tri_material[geo.entry_tri[e]]
-    if sh.materials[mat, 10] < 0.5:
+    if sh.materials[mat, 10] < 0.5 and sh.materials[mat, 21] < 0.5:
         if wp.length(wp.vec3(sh.materials[mat, 0], sh.materials[mat, 1], sh.materials[mat, 2])) == 0.0:
             if wp.length(wp.vec3(sh.materials[mat, 6], sh.materials[mat, 7], sh.materials[mat, 8])) == 0.0:
                 return 1

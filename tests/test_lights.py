@@ -1,0 +1,33 @@
+"""UsdLux lights as the spec defines them: a DistantLight's illuminance from intensity and angle."""
+
+import math
+
+import pytest
+from authoring import add_camera, add_material, add_quad, new_stage
+from pxr import UsdLux
+
+import warp_blur as wb
+
+
+@pytest.mark.parametrize("angle,normalize,expected_factor", [
+    (0.53, False, math.pi * math.sin(math.radians(0.53) / 2) ** 2),   # USD's sun: E = L π sin²(angle/2)
+    (10.0, False, math.pi * math.sin(math.radians(10.0) / 2) ** 2),
+    (0.53, True, 1.0),                                                  # normalized: intensity is E
+    (0.0, False, 1.0),                                                  # a delta light
+])
+def test_distant_light_illuminance_follows_usdlux(scene_path, angle, normalize, expected_factor):
+    """A white Lambert quad facing a distant light head-on: radiance = albedo / π × E."""
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage, shutter=(0, 0))
+    light = UsdLux.DistantLight.Define(stage, "/World/Sun")
+    light.CreateIntensityAttr(50000.0)
+    light.CreateAngleAttr(angle)
+    light.CreateNormalizeAttr(normalize)
+    UsdLux.ShadowAPI.Apply(light.GetPrim()).CreateShadowEnableAttr(False)
+    white = add_material(stage, "/World/Looks/White", diffuse=(1.0, 1.0, 1.0))
+    add_quad(stage, "/World/Quad", 3.0, 3.0, material=white)
+    stage.GetRootLayer().Save()
+    r = wb.render(path, frame=1, samples=1, resolution=(16, 12))
+    expected = 50000.0 * expected_factor / math.pi
+    assert r.rgba[6, 8, 0] == pytest.approx(expected, rel=1e-4)

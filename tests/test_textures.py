@@ -1,0 +1,94 @@
+"""Textures on UsdPreviewSurface: host decoding and mips, and closed forms through every method."""
+
+import os
+
+import numpy as np
+import pytest
+from authoring import add_camera, add_quad, add_textured_material, new_stage, set_st
+from PIL import Image
+
+import warp_blur as wb
+from warp_blur.textures import mip_chain, srgb_to_linear
+
+W, H = 96, 64
+
+
+def _textured_quad_stage(path: str, image: np.ndarray, translate_samples=None, **material) -> str:
+    """A 4×2 quad (s across x, t up y) filling most of the view, emissive from `image` (8-bit)."""
+    folder = os.path.dirname(path)
+    Image.fromarray(image).save(os.path.join(folder, "tex.png"))
+    stage = new_stage(path)
+    add_camera(stage, translate=(0, 0, 8), focal=24.0, haperture=36.0, vaperture=24.0)
+    mat = add_textured_material(stage, "/World/Looks/Tex", "./tex.png", **material)
+    quad = add_quad(stage, "/World/Quad", 2.0, 1.0, material=mat, translate=None if translate_samples else (0, 0, 0),
+                    translate_samples=translate_samples)
+    set_st(quad, [(0, 0), (1, 0), (1, 1), (0, 1)])
+    stage.GetRootLayer().Save()
+    return path
+
+
+def test_srgb_decoding_and_mips():
+    assert srgb_to_linear(np.array([0.0, 1.0]))[1] == pytest.approx(1.0)
+    assert srgb_to_linear(np.array([0.5]))[0] == pytest.approx(0.21404, abs=1e-4)
+    img = np.random.default_rng(1).random((8, 6, 4)).astype(np.float32)
+    chain = mip_chain(img)
+    assert [lev.shape[:2] for lev in chain] == [(8, 6), (4, 3), (2, 1), (1, 1)]
+    np.testing.assert_allclose(chain[1][0, 0], img[:2, :2].mean(axis=(0, 1)), rtol=1e-6)
+
+
+def test_a_static_ramp_texture_reads_its_coordinate(scene_path):
+    """An s ramp (raw colour space) seen head-on: each pixel shows the s of its centre."""
+    ramp = np.repeat(np.arange(256, dtype=np.uint8)[None, :, None], 4, axis=0).repeat(3, axis=2)
+    path = _textured_quad_stage(scene_path(), ramp)
+    r = wb.render(path, frame=1, method="accumulation", samples=1, resolution=(W, H), shutter=(0.0, 0.0))
+    row = r.rgba[H // 2, :, 0]
+    inside = r.rgba[H // 2, :, 3] > 0.999
+    xs = np.nonzero(inside)[0][2:-2]
+    # s is linear in screen x on a plane facing the camera: the ramp's values fit a line
+    fit = np.polyfit(xs, row[xs], 1)
+    assert np.abs(np.polyval(fit, xs) - row[xs]).max() < 0.01
+    assert row[xs[0]] < 0.1 and row[xs[-1]] > 0.9
+
+
+def test_srgb_texture_is_made_linear(scene_path):
+    grey = np.full((4, 4, 3), 128, np.uint8)
+    r = wb.render(_textured_quad_stage(scene_path(), grey, color_space="sRGB"), frame=1, samples=1,
+                  resolution=(32, 24), shutter=(0.0, 0.0))
+    assert r.rgba[12, 16, 0] == pytest.approx(srgb_to_linear(np.array([128 / 255]))[0], abs=2e-3)
+
+
+@pytest.mark.parametrize("method,kw,tol", [("analytic", {"time_bits": 0, "samples": 64}, 0.01),
+                                           ("accumulation", {"samples": 128}, 0.01),
+                                           ("stochastic", {"samples": 256}, 0.03)])
+def test_a_moving_step_texture_blurs_as_its_box_convolution(scene_path, method, kw, tol):
+    """A black|white step texture on a quad moving right by 2 units over the shutter: a pixel at
+    world x (on the quad plane) sees white for the fraction clamp((x + 1) / 2, 0, 1) of the
+    shutter (the step is at the quad's centre, which moves from -1 to 1): the texture convolved
+    with the box of its motion. World x per pixel comes from a still ramp render."""
+    step = np.zeros((4, 512, 3), np.uint8)
+    step[:, 256:] = 255
+    moving = _textured_quad_stage(scene_path(), step, translate_samples={0.5: (-1, 0, 0), 1.5: (1, 0, 0)})
+    r = wb.render(moving, frame=1, method=method, resolution=(W, H), **kw)
+    ramp = np.repeat(np.arange(256, dtype=np.uint8)[None, :, None], 4, axis=0).repeat(3, axis=2)
+    still = wb.render(_textured_quad_stage(scene_path(), ramp), frame=1, samples=1, resolution=(W, H),
+                      shutter=(0.0, 0.0))
+    s = still.rgba[H // 2, :, 0]
+    inside = still.rgba[H // 2, :, 3] > 0.999
+    x_world = 4.0 * s - 2.0                            # s = (x + 2) / 4 on the still quad
+    expected = np.clip((x_world + 1.0) / 2.0, 0.0, 1.0)
+    cols = np.nonzero(inside)[0]
+    cols = cols[(x_world[cols] > -0.9) & (x_world[cols] < 0.9)]   # covered all shutter long
+    got = r.rgba[H // 2, cols, 0]
+    assert np.abs(got - expected[cols]).max() < tol
+    ramp_cols = cols[(expected[cols] > 0.1) & (expected[cols] < 0.9)]
+    assert len(ramp_cols) >= 8, "the blur spans many pixels"
+
+
+def test_every_method_reads_the_texture(scene_path):
+    step = np.zeros((4, 512, 3), np.uint8)
+    step[:, 256:] = 255
+    path = _textured_quad_stage(scene_path(), step, translate_samples={0.5: (-0.5, 0, 0), 1.5: (0.5, 0, 0)})
+    for method in ("accumulation", "stochastic", "analytic", "velocity"):
+        r = wb.render(path, frame=1, method=method, samples=8, resolution=(48, 32))
+        row = r.rgba[16, :, 0]
+        assert row.max() > 0.9 and row[r.rgba[16, :, 3] > 0.999].min() < 0.1, method

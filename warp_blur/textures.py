@@ -1,0 +1,168 @@
+"""UsdUVTexture images into one texel atlas with mip levels, for the kernels' filtered lookups.
+
+Images are read through USD's asset resolver (so files inside a `.usdz` package are found as
+USD finds them) and decoded by Pillow; 8-bit colour channels in sRGB (`sourceColorSpace` sRGB,
+or `auto` for an 8-bit image) are made linear before filtering, alpha stays linear. Each texture
+keeps a box-filtered mip chain down to 1×1. A texture that cannot be read falls back to the
+node's `fallback` value with a warning (USD's rule).
+
+Device layout (texture_lookup.py reads it): texels (N,) vec4 linear RGBA, all levels of all
+textures one after another; levels (NLev, 3) int [offset, width, height]; textures (NT, 4) int
+[first level, level count, wrapS, wrapT]; bindings (NB, BINDING_WIDTH) float [texture, output
+channel (0 rgb, 1 r, 2 g, 3 b, 4 a), scale rgba, bias rgba].
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import threading
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .log import warn_once
+
+WRAP = {"repeat": 0, "mirror": 1, "clamp": 2, "black": 3, "useMetadata": 0}
+CHANNEL = {"rgb": 0, "r": 1, "g": 2, "b": 3, "a": 4}
+BINDING_WIDTH = 10
+MAX_TEXTURE_SIDE = 8192
+
+_image_cache: dict[tuple, list[np.ndarray] | None] = {}
+_cache_lock = threading.Lock()
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """The sRGB transfer function inverted (IEC 61966-2-1), elementwise on [0, 1]."""
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def mip_chain(img: np.ndarray) -> list[np.ndarray]:
+    """(H, W, 4) float32 -> levels down to 1×1, each a 2×2 box filter of the one above (odd
+    sides keep their last row or column)."""
+    levels = [img]
+    while max(img.shape[:2]) > 1:
+        h, w = img.shape[:2]
+        if h > 1:
+            img = img[:h - h % 2]
+            img = 0.5 * (img[0::2] + img[1::2])
+        if w > 1:
+            img = img[:, :w - w % 2]
+            img = 0.5 * (img[:, 0::2] + img[:, 1::2])
+        levels.append(img.astype(np.float32))
+    return levels
+
+
+def read_image(resolved_path: str, color_space: str) -> list[np.ndarray] | None:
+    """Mip chain of (H, W, 4) linear float32 RGBA levels of an image asset, or None (unreadable).
+    Cached per process by path, colour space and the file's (or package's) size and mtime."""
+    try:
+        st = os.stat(resolved_path.split("[", 1)[0])
+        stamp = (st.st_size, st.st_mtime_ns)
+    except OSError:
+        stamp = None
+    key = (resolved_path, color_space, stamp)
+    with _cache_lock:
+        if key in _image_cache:
+            return _image_cache[key]
+    levels = None
+    try:
+        from PIL import Image
+        from pxr import Ar
+        asset = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved_path))
+        if asset is None:
+            raise OSError("not found")
+        with Image.open(io.BytesIO(asset.GetBuffer())) as im:
+            if max(im.size) > MAX_TEXTURE_SIDE:
+                im.thumbnail((MAX_TEXTURE_SIDE, MAX_TEXTURE_SIDE))
+            eight_bit = im.mode in ("L", "LA", "RGB", "RGBA", "P", "1")
+            rgba = np.asarray(im.convert("RGBA"), np.float32) / 255.0 if eight_bit else _float_rgba(im)
+        srgb = color_space == "sRGB" or (color_space == "auto" and eight_bit)
+        if srgb:
+            rgba[..., :3] = srgb_to_linear(rgba[..., :3])
+        levels = mip_chain(np.ascontiguousarray(rgba, np.float32))
+    except Exception as exc:   # any unreadable image: USD renders the fallback
+        warn_once(f"texture:{resolved_path}", f"texture {resolved_path} cannot be read ({type(exc).__name__}: "
+                                              f"{str(exc)[:80]}); using the node's fallback")
+    with _cache_lock:
+        _image_cache[key] = levels
+    return levels
+
+
+def _float_rgba(im) -> np.ndarray:
+    """RGBA float32 of a 16-bit or float image (I;16, I, F modes): grey replicated, alpha 1."""
+    a = np.asarray(im, np.float32)
+    if im.mode.startswith("I;16") or im.mode == "I":
+        a = a / 65535.0
+    if a.ndim == 2:
+        a = np.repeat(a[..., None], 3, axis=2)
+    if a.shape[2] == 3:
+        a = np.concatenate([a, np.ones(a.shape[:2] + (1,), np.float32)], axis=2)
+    return a
+
+
+@dataclass
+class TextureSet:
+    """The frame's textures and bindings (material inputs read from a texture), as host arrays."""
+
+    texels: list = field(default_factory=list)        # (n, 4) blocks
+    levels: list = field(default_factory=list)        # [offset, w, h]
+    textures: list = field(default_factory=list)      # [first level, count, wrapS, wrapT]
+    bindings: list = field(default_factory=list)      # BINDING_WIDTH floats
+    _texture_index: dict = field(default_factory=dict)
+    _size: int = 0
+    device_arrays: dict = field(default_factory=dict)   # device -> uploaded arrays
+
+    def add_texture(self, resolved_path: str, color_space: str, wrap_s: str, wrap_t: str) -> tuple[int, int] | None:
+        """(texture index, level-0 size in texels) of an image with these wrap modes, or None."""
+        key = (resolved_path, color_space, wrap_s, wrap_t)
+        if key not in self._texture_index:
+            chain = read_image(resolved_path, color_space)
+            if chain is None:
+                self._texture_index[key] = None
+            else:
+                first = len(self.levels)
+                for lev in chain:
+                    h, w = lev.shape[:2]
+                    self.levels.append([self._size, w, h])
+                    self.texels.append(lev.reshape(-1, 4))
+                    self._size += w * h
+                self.textures.append([first, len(chain), WRAP.get(wrap_s, 0), WRAP.get(wrap_t, 0)])
+                self._texture_index[key] = (len(self.textures) - 1, max(chain[0].shape[:2]))
+        return self._texture_index[key]
+
+    def add_binding(self, texture: int, channel: str, scale, bias) -> int:
+        row = [float(texture), float(CHANNEL.get(channel, 0)), *map(float, scale), *map(float, bias)]
+        self.bindings.append(row)
+        return len(self.bindings) - 1
+
+    @property
+    def empty(self) -> bool:
+        return not self.bindings
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(texels (N, 4) f32, levels (L, 3) i32, textures (T, 4) i32, bindings (B, W) f32), at
+        least one row each (kernels take no empty arrays)."""
+        texels = np.concatenate(self.texels).astype(np.float32) if self.texels else np.zeros((1, 4), np.float32)
+        levels = np.asarray(self.levels or [[0, 1, 1]], np.int32)
+        textures = np.asarray(self.textures or [[0, 1, 0, 0]], np.int32)
+        bindings = np.asarray(self.bindings or [[0.0] * BINDING_WIDTH], np.float32)
+        return texels, levels, textures, bindings
+
+
+def texture_lod(proj, positions: np.ndarray, tri_vertices: np.ndarray, corner_uvs: np.ndarray) -> np.ndarray:
+    """(T,) float32 log2 of each triangle's texture-coordinate span per pixel at the shutter
+    centre: 0.5 log2(uv area / pixel area), so a texture of side S is read at mip level
+    lod + log2(S) (-30 where the triangle has no screen area: full resolution).
+
+    positions: (V, 3) camera space; tri_vertices: (T, 3); corner_uvs: (3T, 2)."""
+    px = proj.project(positions)[tri_vertices]                   # (T, 3, 2) pixels
+    uv = corner_uvs.reshape(-1, 3, 2).astype(np.float64)
+    def area(p):
+        return 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+                            - (p[:, 2, 0] - p[:, 0, 0]) * (p[:, 1, 1] - p[:, 0, 1]))
+    with np.errstate(all="ignore"):
+        ratio = area(uv) / area(px)
+        lod = 0.5 * np.log2(ratio)
+    lod[~np.isfinite(lod)] = -30.0
+    return lod.astype(np.float32)
