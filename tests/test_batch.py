@@ -163,3 +163,27 @@ def test_skip_invalid_drops_the_prim_with_a_warning(tmp_path, scene_path, capsys
     assert main(["render", path, "-o", str(tmp_path / "f.exr"), "--resolution", "16x12", "--samples", "1",
                  "--skip-invalid"]) == 0
     assert "dropping /World/Bad" in capsys.readouterr().err
+
+
+def test_the_api_refuses_what_the_cli_refuses(tmp_path, scene_path):
+    """One behaviour, two interfaces (issue 16): the same frame, the same typed error and message."""
+    import contextlib
+    import io
+
+    import warp_blur as wb
+    from warp_blur.cli import main
+    scene = emissive_quad_stage(scene_path(), translate_samples={0: (-1, 0, 0), 2: (1, 0, 0)})
+    cases = [dict(frame=999.0), dict(frame=float("nan")), dict(frame=1.0, resolution=(16384, 16384), method="velocity",
+                                                               frame_memory_limit_mb=64.0)]
+    for case in cases:
+        kw = dict(case)
+        frame = kw.pop("frame")
+        with pytest.raises(wb.UserError) as api_error:
+            wb.render(scene, frame=frame, samples=1, **kw)
+        args = ["render", scene, "-o", str(tmp_path / "x.exr"), "--frame", str(frame), "--samples", "1"]
+        if "resolution" in kw:
+            args += ["--resolution", "16384x16384", "--method", "velocity", "--memory-limit", "64"]
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err):
+            assert main(args) == 2
+        assert err.getvalue().strip() == f"warp-blur: error: {api_error.value}"

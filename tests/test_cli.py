@@ -114,3 +114,73 @@ def test_compare_exit_codes(tmp_path, scene_path):
     assert main(["compare", a, a, "--fail", "0"]) == 0
     assert main(["compare", a, b, "--fail", "1e-6"]) == 1
     assert main(["compare", a, str(tmp_path / "missing.exr")]) == 2
+
+
+# ------------------------------------------------------------------ the CLI as a manual (issue 16)
+def _subparsers():
+    import argparse
+
+    from warp_blur.cli import _build_parser
+    parser = _build_parser()
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return action.choices
+
+
+def test_every_flag_has_help_and_shows_its_default():
+    import argparse
+    for name, sub in _subparsers().items():
+        text = sub.format_help()
+        for action in sub._actions:
+            if isinstance(action, argparse._HelpAction) or action.help == argparse.SUPPRESS:
+                continue
+            assert action.help, f"{name} {action.option_strings or action.dest} has no help text"
+            if action.option_strings and action.default not in (None, False, "", argparse.SUPPRESS):
+                assert f"(default: {action.default})" in " ".join(text.split()), \
+                    f"{name} {action.option_strings[0]} does not show its default {action.default!r}"
+    render_help = _subparsers()["render"].format_help()
+    for group in ("frames:", "camera:", "image:", "method and quality:", "shadows:", "output:", "execution and farm:"):
+        assert f"\n{group}\n" in render_help
+    assert "(here: cpu" in " ".join(render_help.split())
+    for default in ("default 64", "default 128", "default 0"):   # method-dependent defaults spelt out
+        assert default in " ".join(render_help.split())
+
+
+def test_version():
+    code, out, _ = _run("--version")
+    assert code == 0 and out.startswith("warp-blur 0.1.0 (warp-lang ")
+
+
+def test_a_single_frame_ends_with_a_line_naming_the_file(tmp_path, scene_path):
+    out = tmp_path / "one.exr"
+    code, stdout, stderr = _run("render", emissive_quad_stage(scene_path()), "-o", str(out), "--frame", "1",
+                                "--resolution", "16x12", "--samples", "2")
+    lines = [ln for ln in stdout.splitlines() if ln.strip()]
+    assert code == 0 and len(lines) == 1 and lines[0].startswith(f"wrote {out} in ") and lines[0].endswith(" s")
+    assert "band" not in stderr   # stdout is not a terminal: no progress bar
+    code, stdout, _ = _run("render", emissive_quad_stage(scene_path()), "-o", str(out), "--frame", "1",
+                           "--resolution", "16x12", "--samples", "2", "--quiet")
+    assert code == 0 and stdout == ""
+
+
+def test_a_single_frame_shows_its_progress_on_a_terminal(tmp_path, scene_path):
+    """Under a pseudo-terminal the frame's stages and bands are drawn as a bar on stderr."""
+    import pty
+    out = tmp_path / "one.exr"
+    scene = emissive_quad_stage(scene_path(), translate_samples={0: (-1, 0, 0), 2: (1, 0, 0)})
+    master, slave = pty.openpty()
+    p = subprocess.Popen([sys.executable, "-m", "warp_blur.cli", "render", scene, "-o", str(out), "--frame", "1",
+                          "--resolution", "64x48", "--samples", "4", "--threads", "2", "--method", "stochastic"],
+                         stdout=slave, stderr=subprocess.PIPE, text=True)
+    os.close(slave)
+    chunks = []
+    while True:
+        try:
+            data = os.read(master, 4096)
+        except OSError:
+            break
+        if not data:
+            break
+        chunks.append(data.decode(errors="replace"))
+    _, stderr = p.communicate(timeout=300)
+    os.close(master)
+    assert p.returncode == 0 and "bands" in stderr and "wrote " in "".join(chunks)

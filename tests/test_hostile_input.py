@@ -155,3 +155,71 @@ def test_temporaries_of_live_runs_survive_and_outputs_follow_the_umask(tmp_path,
     finally:
         os.umask(old)
     assert code == 0 and (out.stat().st_mode & 0o777) == 0o644
+
+
+def test_a_zero_vertical_aperture_exits_2_naming_it(tmp_path, scene_path):
+    from scenes import emissive_quad_stage
+    from pxr import Usd, UsdGeom
+    path = emissive_quad_stage(scene_path())
+    stage = Usd.Stage.Open(path)
+    UsdGeom.Camera(stage.GetPrimAtPath("/World/Cam")).GetVerticalApertureAttr().Set(0.0)
+    stage.GetRootLayer().Save()
+    code, lines = _cli("render", path, "-o", str(tmp_path / "a.exr"), "--frame", "1", "--resolution", "16x12")
+    assert code == 2 and len(lines) == 1 and "verticalAperture" in lines[0]
+
+
+def test_a_light_with_a_non_finite_transform_is_ignored_with_a_warning(tmp_path):
+    text = STAGE
+    for key, value in dict(DIFFUSE="(0.5, 0.5, 0.5)", ROUGHNESS="0.5", LIGHT_COLOR="(1, 1, 1)",
+                           LIGHT_INTENSITY="2").items():
+        text = text.replace(key, value)
+    text = text.replace('''    def DistantLight "Sun"
+    {''', '''    def SphereLight "Lamp"
+    {
+        double3 xformOp:translate = (0, inf, 3)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }
+    def DistantLight "Sun"
+    {''')
+    path = tmp_path / "stage.usda"
+    path.write_text(text)
+    for method in ("analytic", "stochastic"):
+        log.reset()
+        result = wb.render(str(path), frame=1, method=method, resolution=(32, 24), samples=2)
+        assert np.isfinite(result.rgba).all() and result.rgba[12, 16, :3].max() > 0.01   # the sun still lights it
+        assert any("/World/Lamp" in w and "not finite" in w for w in result.stats["warnings"]), method
+
+
+def _nan_translate_stage(tmp_path) -> str:
+    """A camera whose translation is NaN: USD's C++ core prints its own warning on fd 2."""
+    text = open(os.path.join(os.path.dirname(__file__), "..", "usd_scenes", "crossing.usda")).read()
+    assert "double3 xformOp:translate = (0, 0, 10)" in text
+    path = tmp_path / "nan.usda"
+    path.write_text(text.replace("double3 xformOp:translate = (0, 0, 10)", "double3 xformOp:translate = (0, nan, 10)", 1))
+    return str(path)
+
+
+def test_usds_own_diagnostics_stay_hidden_unless_verbose(tmp_path):
+    import subprocess
+    import sys
+    scene = _nan_translate_stage(tmp_path)
+    args = [sys.executable, "-m", "warp_blur.cli", "render", scene, "-o", str(tmp_path / "a.exr"),
+            "--resolution", "16x12", "--samples", "1"]
+    quiet = subprocess.run(args, capture_output=True, text=True, timeout=300)
+    lines = [ln for ln in quiet.stderr.splitlines() if ln.strip()]
+    assert quiet.returncode == 2 and len(lines) == 1 and lines[0].startswith("warp-blur: error:"), quiet.stderr
+    loud = subprocess.run(args + ["--verbose"], capture_output=True, text=True, timeout=300)
+    assert loud.returncode == 2 and "OrthogonalizeBasis" in loud.stderr and "warp-blur: error:" in loud.stderr
+
+
+def test_a_frame_too_large_for_memory_is_refused_before_any_work(tmp_path, scene_path):
+    import time
+    t0 = time.perf_counter()
+    code, lines = _cli("render", _quad(scene_path), "-o", str(tmp_path / "a.exr"), "--frame", "1",
+                       "--resolution", "16384x16384", "--method", "analytic", "--memory-limit", "4096")
+    assert code == 2 and len(lines) == 1 and "memory limit" in lines[0] and time.perf_counter() - t0 < 30
+    with pytest.raises(wb.SettingsError, match="memory limit"):
+        wb.Renderer(_quad(scene_path), resolution=(4096, 4096),
+                    settings=wb.RenderSettings(method="velocity", frame_memory_limit_mb=100))
+    from warp_blur.memory import frame_bytes
+    assert frame_bytes("analytic", 100, 100, 2) == 4 * frame_bytes("analytic", 100, 100, 1)

@@ -15,17 +15,19 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from . import log
+from . import log, progress
 from .frame import FrameContext
 from .framing import is_framing_camera, place_framing_camera
 from .errors import SettingsError, StageError, UserError
+from .exr_attributes import standard_attributes
+from .memory import check_frame_fits
 from .methods import get_method
 from .scene import Scene
 from .settings import RenderSettings
 from .stage import (choose_camera, choose_resolution, conform_policy, open_stage, projection_at,
                     shutter_for_frame)
 
-__version__ = "0.1.0"
+from .version import __version__
 
 
 @dataclass
@@ -36,13 +38,15 @@ class RenderResult:
     aovs: name -> array: "Z" (H, W) view depth, "motion" (H, W, 2) pixels open->close,
           "coverage" (H, W) time-averaged coverage.
     stats: timings per stage (seconds), triangles, method counters, warnings.
-    metadata: camera, shutter, method and settings (written to the EXR header).
+    metadata: camera, shutter, method and settings (written to the EXR header as warp_blur.*).
+    exr_attributes: OpenEXR standard attributes (worldToCamera, worldToNDC, chromaticities, ...).
     """
 
     rgba: np.ndarray
     aovs: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
     metadata: dict = field(default_factory=dict)
+    exr_attributes: dict = field(default_factory=dict)
 
 
 _warp_ready = False
@@ -79,12 +83,18 @@ class Renderer:
         self.camera = choose_camera(self.stage, camera)
         self.resolution = choose_resolution(self.stage, resolution)
         self.conform = conform_policy(self.stage)
+        check_frame_fits(self.settings.method, *self.resolution, self.settings.spatial_samples,
+                         self.settings.frame_memory_limit_mb)
         init_warp(self.settings.device)
 
     def check_frame(self, frame: float) -> None:
-        """Frames outside the stage's authored time range are a user error (naming the range)."""
+        """Frames that are not finite, or outside the stage's authored time range, are a user error
+        (naming the range); the CLI and the API both refuse them here."""
+        if not math.isfinite(frame):
+            raise UserError(f"frame {frame} is not a finite number")
         if self.stage.HasAuthoredTimeCodeRange():
-            lo, hi = self.stage.GetStartTimeCode(), self.stage.GetEndTimeCode()
+            start, end = self.stage.GetStartTimeCode(), self.stage.GetEndTimeCode()
+            lo, hi = min(start, end), max(start, end)   # a reversed authored range still bounds the frames
             if not (lo <= frame <= hi):
                 raise UserError(f"frame {frame:g} is outside the stage's authored range {lo:g}..{hi:g}")
 
@@ -92,7 +102,10 @@ class Renderer:
         return float(self.stage.GetStartTimeCode()) if self.stage.HasAuthoredTimeCodeRange() else 1.0
 
     def render(self, frame: float) -> RenderResult:
+        """Render one frame (a time code inside the stage's authored range)."""
         t_start = time.perf_counter()
+        frame = float(frame)
+        self.check_frame(frame)
         s = self.settings
         device = s.device
         if is_framing_camera(self.camera):
@@ -100,6 +113,7 @@ class Renderer:
         proj = projection_at(self.camera, frame, self.resolution, self.conform)
         shutter = shutter_for_frame(self.stage, self.camera, frame, s.shutter)
         t0 = time.perf_counter()
+        progress.stage("load")
         scene = Scene(self.stage, self.camera, frame, shutter, skip_invalid=s.skip_invalid)
         if not scene.units:
             raise StageError(f"the stage {self.scene_path} has no renderable geometry "
@@ -137,12 +151,14 @@ class Renderer:
         }
         metadata = {
             "camera": str(self.camera.GetPath()), "shutter": [shutter.open, shutter.close],
-            "frame": frame, "scene": self.scene_path, "warp_blur_version": __version__,
+            "frame": frame, "scene": os.path.abspath(self.scene_path), "warp_blur_version": __version__,
             "settings": s.describe(), "render_time_s": round(total, 4),
             "motion_convention": "motion.X/motion.Y: screen displacement in pixels of the surface seen at the "
                                  "shutter centre, from shutter open to close; x right, y down; 0 where nothing is seen",
         }
-        return RenderResult(rgba=rgba, aovs=aovs, stats=stats, metadata=metadata)
+        exr = standard_attributes(proj, scene.cam_from_world(0.5 * (shutter.open + shutter.close)),
+                                  self.stage.GetFramesPerSecond(), self.scene_path, frame)
+        return RenderResult(rgba=rgba, aovs=aovs, stats=stats, metadata=metadata, exr_attributes=exr)
 
 
 def render(scene: str, frame: float | None = None, method: str = "accumulation",

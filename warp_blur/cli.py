@@ -12,9 +12,11 @@ import json
 import logging
 import os
 import sys
+import time
 
 from typing import TYPE_CHECKING
 
+from . import native_stderr
 from .errors import UserError
 
 if TYPE_CHECKING:
@@ -26,59 +28,147 @@ class _Parser(argparse.ArgumentParser):
         raise UserError(message)
 
 
-def _build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="warp-blur", description="Motion-blur renderer for animated USD stages (NVIDIA Warp).")
-    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Every flag's default in its help, except where there is none to show (None, off flags),
+    whose help says what applies (method-dependent defaults are spelt out in the text)."""
 
-    r = sub.add_parser("render", help="render frames of a stage to EXR or PNG")
-    r.add_argument("scene")
-    r.add_argument("-o", "--output", required=True, help="output path; a run of # is the frame number")
-    g = r.add_mutually_exclusive_group()
-    g.add_argument("--frames", help="usdrecord frame spec: 1:24, 1:24x2, 1,5,9")
-    g.add_argument("--frame", type=float)
-    r.add_argument("--camera")
-    r.add_argument("--resolution", help="WxH")
-    r.add_argument("--method", default="accumulation", choices=["accumulation", "stochastic", "analytic", "velocity"])
-    r.add_argument("--samples", type=int)
-    r.add_argument("--time-bits", type=int)
-    r.add_argument("--quality", choices=["draft", "preview", "final"])
-    r.add_argument("--aov", default="", help="comma-separated AOVs: Z, motion, coverage")
-    r.add_argument("--shutter", help="OPEN:CLOSE offsets overriding the camera's shutter")
-    r.add_argument("--seed", type=int)
-    r.add_argument("--spatial-samples", type=int, default=1, help="n -> n×n sub-pixel positions")
-    r.add_argument("--threads", type=int)
+    def _get_help_string(self, action):
+        if action.default in (None, False, "", argparse.SUPPRESS) or "default" in (action.help or ""):
+            return action.help
+        return super()._get_help_string(action)
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    from .version import __version__
+
+    def of(dist: str) -> str:
+        try:
+            return version(dist)
+        except PackageNotFoundError:
+            return "not installed"
+    return f"warp-blur {__version__} (warp-lang {of('warp-lang')}, usd-core {of('usd-core')}, Python {sys.version.split()[0]})"
+
+
+def _devices_here() -> str:
+    """The Warp devices this machine can have, without initialising Warp (kept cheap for --help)."""
+    import ctypes
+    try:
+        ctypes.CDLL("libcuda.so.1")
+        return "cpu, cuda"
+    except OSError:
+        return "cpu"
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="warp-blur", description="Motion-blur renderer for animated USD stages (NVIDIA Warp kernels).",
+                epilog="Exit status: 0 success, 1 some frames failed (or compare over --fail), 2 bad input, "
+                       "130 interrupted. `warp-blur COMMAND --help` for each command.")
+    p.add_argument("--version", action="version", version=_version())
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser, metavar="COMMAND")
+    fmt = _HelpFormatter
+
+    r = sub.add_parser("render", help="render frames of a stage to EXR or PNG", formatter_class=fmt,
+                       description="Render frames of a USD stage with motion blur over each frame's shutter.")
+    r.add_argument("scene", help="the USD stage (.usd, .usda, .usdc, .usdz)")
+    r.add_argument("-o", "--output", required=True,
+                   help="output .exr (float RGBA + AOVs + metadata) or .png (8-bit sRGB preview); a run of "
+                        "# is the zero-padded frame number, ###.### for sub-frames")
+
+    fr = r.add_argument_group("frames")
+    g = fr.add_mutually_exclusive_group()
+    g.add_argument("--frames", metavar="SPEC", help="usdrecord frame spec: 1:24, 1:24x2, 1,5,9 "
+                                                   "(default: the stage's startTimeCode)")
+    g.add_argument("--frame", type=float, metavar="F", help="one frame (time code; default: the stage's startTimeCode)")
+    fr.add_argument("--shutter", metavar="OPEN:CLOSE",
+                    help="shutter offsets from the frame in time codes, overriding the camera's "
+                         "(e.g. -0.25:0.25; default: the camera's shutter:open/close)")
+
+    cg = r.add_argument_group("camera")
+    cg.add_argument("--camera", metavar="PATH", help="camera prim path (default: the render settings' camera, "
+                                                     "else the first camera, else one computed to frame the stage)")
+
+    ig = r.add_argument_group("image")
+    ig.add_argument("--resolution", metavar="WxH",
+                    help="image size in pixels (default: UsdRenderSettings' resolution, else 640x480)")
+    ig.add_argument("--aov", default="", metavar="NAMES",
+                    help="comma-separated AOVs written beside RGBA in EXR: Z, motion, coverage (default: none)")
+    ig.add_argument("--spatial-samples", type=int, default=1, metavar="N",
+                    help="N×N stratified sub-pixel positions per pixel (box filter)")
+
+    mg = r.add_argument_group("method and quality")
+    mg.add_argument("--method", default="accumulation", choices=["accumulation", "stochastic", "analytic", "velocity"],
+                    help="accumulation: N sharp instants averaged (the reference); stochastic: N jittered time "
+                         "samples per pixel; analytic: exact coverage intervals (noise-free); velocity: post-process "
+                         "blur of one sharp render")
+    mg.add_argument("--quality", choices=["draft", "preview", "final"],
+                    help="preset of samples, time bits and shadow quality; an explicit flag wins (default: none, "
+                         "the per-method defaults below)")
+    mg.add_argument("--samples", type=int, metavar="N",
+                    help="instants (accumulation, default 64), samples per pixel (stochastic, 64), shading samples "
+                         "per interval at most (analytic, 16) or gather samples (velocity, 8)")
+    mg.add_argument("--time-bits", type=int, metavar="B",
+                    help="analytic only: time slots per pixel, 32, 64, 128, 256, 512 or 1024, or 0 for exact spans "
+                         "(default 128)")
+    mg.add_argument("--seed", type=int, metavar="S", help="stochastic only: random seed (default 0)")
+
     sg = r.add_argument_group("shadows")
     sg.add_argument("--shadows", default="auto", choices=["auto", "warped", "direct", "off"],
                     help="shadow maps warped from key maps, rendered per instant (reference), none, or auto "
                          "(per light: rendered unless warping is measured cheaper for this frame)")
-    sg.add_argument("--shadow-map-size", type=int, help="texels per shadow-map side (power of two; 512)")
-    sg.add_argument("--light-samples", type=int, help="point samples per area light: soft shadows (1)")
-    sg.add_argument("--shadow-times", type=int, default=8, help="shadow-map instants over the shutter (8)")
-    sg.add_argument("--shadow-grid", type=int, default=128, help="warp control-point cells per map side (128)")
-    r.add_argument("--resume", action="store_true", help="skip frames already rendered with the same settings")
-    r.add_argument("--fail-fast", action="store_true")
-    r.add_argument("--skip-invalid", action="store_true", help="drop prims with invalid geometry (warned)")
-    r.add_argument("--device", default="cpu")
-    r.add_argument("--compression", default="zip", choices=["zip", "zips", "piz", "none", "rle", "dwaa"])
-    r.add_argument("--json", action="store_true", help="print per-frame stats as JSON lines")
-    r.add_argument("--workers", type=int, default=1, help="render frames in N local processes")
-    r.add_argument("--cluster", help="render frames on a Dask cluster (scheduler address, e.g. tcp://host:8786)")
-    r.add_argument("--quiet", action="store_true")
+    sg.add_argument("--shadow-map-size", type=int, metavar="S",
+                    help="texels per shadow-map side, a power of two (default 512; presets 256/512/1024)")
+    sg.add_argument("--light-samples", type=int, metavar="M",
+                    help="point samples per area light, for soft shadows (default 1; presets 1/4/9)")
+    sg.add_argument("--shadow-times", type=int, default=8, metavar="B", help="shadow-map instants over the shutter")
+    sg.add_argument("--shadow-grid", type=int, default=128, metavar="G",
+                    help="warp control-point cells per map side (--shadows warped)")
 
-    c = sub.add_parser("compare", help="compare two EXR images (RMSE over all RGBA values)")
-    c.add_argument("a")
-    c.add_argument("b")
-    c.add_argument("--fail", type=float, help="exit 1 when RMSE exceeds this")
-    c.add_argument("--threshold", type=float, default=0.01, help="per-pixel error counted as 'above'")
-    c.add_argument("--diff", help="write the absolute difference image here (EXR)")
-    c.add_argument("--json", action="store_true")
+    og = r.add_argument_group("output")
+    og.add_argument("--compression", default="zip", choices=["zip", "zips", "piz", "none", "rle", "dwaa"],
+                    help="EXR compression")
+    og.add_argument("--resume", action="store_true",
+                    help="skip frames whose output exists with the same settings fingerprint")
+    og.add_argument("--skip-invalid", action="store_true",
+                    help="drop prims with invalid geometry (non-finite points, bad indices) with a warning "
+                         "instead of failing")
+    og.add_argument("--json", action="store_true", help="print each frame's stats as a JSON line on stdout")
+    og.add_argument("--quiet", action="store_true", help="no progress, no warnings, no closing line: errors only")
+    og.add_argument("--verbose", action="store_true",
+                    help="also show USD's and Warp's own diagnostics and Python warnings (hidden otherwise)")
 
-    i = sub.add_parser("info", help="what a scene requires to render")
-    i.add_argument("scene")
-    i.add_argument("--camera")
-    i.add_argument("--frame", type=float)
-    i.add_argument("--resolution")
-    i.add_argument("--json", action="store_true")
+    eg = r.add_argument_group("execution and farm")
+    eg.add_argument("--device", default="cpu", metavar="DEVICE",
+                    help=f"Warp device: cpu, or cuda / cuda:N with a GPU (here: {_devices_here()})")
+    eg.add_argument("--threads", type=int, metavar="N", help="worker threads for tiles (default: every core)")
+    eg.add_argument("--memory-limit", type=float, metavar="MB",
+                    help="refuse a frame whose buffers are estimated above this many MiB, before any work "
+                         "(default: three quarters of physical memory)")
+    eg.add_argument("--workers", type=int, default=1, metavar="N", help="render frames in N local processes")
+    eg.add_argument("--cluster", metavar="ADDRESS",
+                    help="render frames on a Dask cluster (scheduler address, e.g. tcp://host:8786)")
+    eg.add_argument("--fail-fast", action="store_true", help="stop a range at its first failed frame")
+
+    c = sub.add_parser("compare", help="compare two EXR images (RMSE over all RGBA values)", formatter_class=fmt,
+                       description="RMSE, PSNR, max error, share of pixels above a threshold and SSIM of two EXRs.")
+    c.add_argument("a", help="first EXR")
+    c.add_argument("b", help="second EXR (same size)")
+    c.add_argument("--fail", type=float, metavar="RMSE", help="exit 1 when RMSE exceeds this (default: never)")
+    c.add_argument("--threshold", type=float, default=0.01, metavar="T", help="per-pixel error counted as 'above'")
+    c.add_argument("--diff", metavar="D.exr", help="write the absolute difference image here (EXR)")
+    c.add_argument("--json", action="store_true", help="print the report as JSON")
+    c.add_argument("--verbose", action="store_true", help=argparse.SUPPRESS)
+
+    i = sub.add_parser("info", help="what a scene requires to render", formatter_class=fmt,
+                       description="Camera, shutter, frame range, what moves (object and camera motion), lights, "
+                                   "triangles and a memory estimate per method.")
+    i.add_argument("scene", help="the USD stage")
+    i.add_argument("--camera", metavar="PATH", help="camera prim path (default: as render chooses it)")
+    i.add_argument("--frame", type=float, metavar="F", help="time code (default: the stage's startTimeCode)")
+    i.add_argument("--resolution", metavar="WxH", help="image size (default: as render chooses it)")
+    i.add_argument("--json", action="store_true", help="print the report as JSON")
+    i.add_argument("--verbose", action="store_true", help="also show USD's own diagnostics")
     return p
 
 
@@ -92,7 +182,7 @@ def settings_from_args(args) -> "RenderSettings":
         shutter=parse_shutter(args.shutter) if args.shutter else None, threads=args.threads,
         aovs=aovs or (), skip_invalid=args.skip_invalid, device=args.device, shadows=args.shadows,
         shadow_map_size=args.shadow_map_size, light_samples=args.light_samples, shadow_times=args.shadow_times,
-        shadow_grid=args.shadow_grid)
+        shadow_grid=args.shadow_grid, frame_memory_limit_mb=args.memory_limit)
 
 
 def fingerprint(scene: str, camera: str, resolution, frame: float, settings) -> str:
@@ -164,9 +254,16 @@ def _cmd_render(args) -> int:
         key = (args.scene, cam, renderer.resolution, tuple(sorted((k, repr(v)) for k, v in settings_dict.items())))
         batch._renderers[key] = renderer  # reuse the stage already opened
     failures: list[tuple[float, str]] = []
+    single = len(frames) == 1
+    frame_bar = None
+    if single and tasks and not args.quiet and sys.stdout.isatty() and args.workers == 1 and not args.cluster:
+        from . import progress   # one frame on a terminal: its stages and pixel bands
+        frame_bar = tqdm(total=0, unit="band", file=sys.stderr, dynamic_ncols=True, leave=False,
+                         bar_format="{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} bands [{elapsed}]")
+        progress.listen(progress.TqdmFrameProgress(frame_bar))
     bar = tqdm(total=len(frames), initial=skipped, unit="frame", disable=args.quiet or len(frames) < 2,
                file=sys.stderr, dynamic_ncols=True)
-    single = len(frames) == 1
+    t0 = time.perf_counter()
     try:
         user_errors = list_results(execute(tasks, workers=args.workers, cluster=args.cluster,
                                            fail_fast=args.fail_fast), bar, args, failures, single)
@@ -174,7 +271,18 @@ def _cmd_render(args) -> int:
         bar.close()
         remove_stale_temporaries(paths)   # workers ended: their temporaries are a dead owner's
         raise
+    finally:
+        if frame_bar is not None:
+            from . import progress
+            progress.listen(None)
+            frame_bar.close()
     bar.close()
+    written = len(tasks) - len(failures)
+    if not args.quiet and not args.json and written:
+        where = paths[0] if single else args.output
+        print(f"wrote {where}" + ("" if single else f" ({written} frames)")
+              + f" in {time.perf_counter() - t0:.2f} s"
+              + (f", {skipped} skipped (--resume)" if skipped else ""), flush=True)
     if single and failures and user_errors:
         raise UserError(failures[0][1])  # one frame of bad input: exit 2, one line
     if failures:
@@ -257,23 +365,34 @@ def _join_dash_values(argv: list[str]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = _join_dash_values(sys.argv[1:] if argv is None else list(argv))
+    verbose = "--verbose" in argv
+    with native_stderr.captured(verbose=verbose):   # USD's/Warp's C++ diagnostics: only with --verbose
+        return _main(argv, verbose)
+
+
+def _main(argv: list[str], verbose: bool) -> int:
+    import warnings
     log = logging.getLogger("warp_blur")
     for h in list(log.handlers):
         log.removeHandler(h)
     handler = logging.StreamHandler(sys.stderr)  # this call's stderr (tests swap it)
     handler.setFormatter(logging.Formatter("warp-blur: %(levelname)s: %(message)s"))
     log.addHandler(handler)
-    log.setLevel(logging.WARNING)
+    log.setLevel(logging.INFO if verbose else logging.WARNING)
     log.propagate = False
     try:
-        args = _build_parser().parse_args(_join_dash_values(sys.argv[1:] if argv is None else list(argv)))
-        if getattr(args, "quiet", False):
-            log.setLevel(logging.ERROR)
-        if args.command == "render":
-            return _cmd_render(args)
-        if args.command == "compare":
-            return _cmd_compare(args)
-        return _cmd_info(args)
+        with warnings.catch_warnings():
+            if not verbose:   # numpy's and other libraries' RuntimeWarnings are not the user's business
+                warnings.simplefilter("ignore")
+            args = _build_parser().parse_args(argv)
+            if getattr(args, "quiet", False):
+                log.setLevel(logging.ERROR)
+            if args.command == "render":
+                return _cmd_render(args)
+            if args.command == "compare":
+                return _cmd_compare(args)
+            return _cmd_info(args)
     except UserError as exc:
         print(f"warp-blur: error: {exc}", file=sys.stderr)
         return 2

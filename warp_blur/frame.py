@@ -14,6 +14,7 @@ from .binning import TILE_SIZE, TileBins, bin_entries, entry_pixel_bounds
 from .camera import Projection
 from .device_data import TriangleTables, make_bins, make_geometry, make_shading, make_view
 from .kernel_types import Geometry
+from . import progress
 from .parallel import launch_pixels
 from .raster import render_depth_motion, render_sharp, shade_recorded
 from .scene import Scene, Snapshot
@@ -60,6 +61,7 @@ class FrameContext:
 
     @contextmanager
     def timed(self, stage: str):
+        progress.stage(stage)
         t0 = time.perf_counter()
         try:
             yield

@@ -7,7 +7,9 @@ from pxr import UsdGeom
 
 from .lights import DISTANT, DISK, RECT, SPHERE
 from .framing import is_framing_camera, place_framing_camera
+from .memory import frame_bytes
 from .scene import Scene
+from .settings import METHODS
 from .stage import (choose_camera, choose_resolution, conform_policy, open_stage, projection_at,
                     shutter_for_frame)
 
@@ -29,29 +31,23 @@ def scene_report(path: str, camera: str | None = None, frame: float | None = Non
     scene = Scene(stage, cam, frame, shutter, skip_invalid=True)
     open_s, close_s = scene.snapshot(shutter.open), scene.snapshot(shutter.close)
     prims = []
-    px_open, px_close = proj.project(open_s.positions), proj.project(close_s.positions)
+    motion = screen_motion(proj, open_s, close_s)
     for ui, u in enumerate(scene.units):
         o = scene.unit_vertex_offsets[ui]
         n = u.num_points * u.num_instances
-        disp = np.linalg.norm(px_close[o:o + n] - px_open[o:o + n], axis=-1) if n else np.zeros(1)
-        disp = disp[np.isfinite(disp)]
+        total, obj, cam_px = (_max_finite(m[o:o + n]) for m in motion)
         prims.append({"path": u.path, "triangles": int(len(u.local_tris) * u.num_instances),
                       "instances": u.num_instances,
                       "deforming": bool(UsdGeom.PointBased(u.prim).GetPointsAttr().ValueMightBeTimeVarying())
                       if u.prim.IsA(UsdGeom.PointBased) else False,
-                      "max_screen_motion_px": float(disp.max()) if len(disp) else 0.0,
-                      "moves_on_screen": bool(len(disp) and disp.max() > 1e-3)})
+                      "max_screen_motion_px": total, "max_object_motion_px": obj, "max_camera_motion_px": cam_px,
+                      "moves_in_world": obj > 1e-3,
+                      "moves_on_screen": total > 1e-3})
     lights = [{"path": str(lp.prim.GetPath()), "type": _LIGHT_NAMES[lp.kind]} for lp in scene.light_prims]
     for row, info in zip(open_s.lights, lights):
         info["casts_shadows"] = bool(row[17] > 0.5)
     t = scene.num_triangles
-    px = res[0] * res[1]
-    memory = {
-        "accumulation": int(t * 3 * 12 + px * 16 * 2 + t * 32),
-        "stochastic": int(t * 3 * 12 * 2 + px * 16 * 2 + t * 32),
-        "analytic": int(t * 3 * 12 * 2 + px * 16 * 2 + t * 32 + px * 4 * 32),
-        "velocity": int(t * 3 * 12 * 3 + px * 16 * 4 + t * 32),
-    }
+    memory = {m: frame_bytes(m, res[0], res[1], 1, t) for m in METHODS}
     return {
         "scene": path, "camera": str(cam.GetPath()), "camera_computed": is_framing_camera(cam), "resolution": list(res),
         "projection": "orthographic" if proj.orthographic else "perspective",
@@ -59,10 +55,45 @@ def scene_report(path: str, camera: str | None = None, frame: float | None = Non
         "frames_per_second": stage.GetFramesPerSecond(), "frame": frame,
         "shutter": [shutter.open, shutter.close], "up_axis": UsdGeom.GetStageUpAxis(stage),
         "meters_per_unit": UsdGeom.GetStageMetersPerUnit(stage),
-        "triangles": t, "prims": prims, "moving_prims": sum(p["moves_on_screen"] for p in prims),
+        "triangles": t, "prims": prims, "moving_prims": sum(p["moves_in_world"] for p in prims),
+        "camera_moves": bool(np.abs(open_s.cam_from_world - close_s.cam_from_world).max() > 1e-9),
         "lights": lights, "dome": scene.has_dome, "headlight": scene.headlight,
         "memory_estimate_bytes": memory,
     }
+
+
+def screen_motion(proj, open_s, close_s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-vertex screen motion over the shutter, in pixels (V,): the whole of it; the object's
+    own (the camera held at its shutter-open pose); and the camera's (the object held at open).
+    NaN for vertices far outside the picture or behind the near plane."""
+    def world(s):
+        p = np.c_[s.positions, np.ones(len(s.positions))]
+        return p @ np.linalg.inv(s.cam_from_world)
+
+    with np.errstate(all="ignore"):
+        w_open, w_close = world(open_s), world(close_s)
+        seen = {}
+
+        def px(points_world, cam_from_world):
+            key = (id(points_world), id(cam_from_world))
+            if key not in seen:
+                seen[key] = proj.project((points_world @ cam_from_world)[:, :3])
+            return seen[key]
+        c_open, c_close = open_s.cam_from_world, close_s.cam_from_world
+        base = px(w_open, c_open)
+        total = np.linalg.norm(px(w_close, c_close) - base, axis=-1)
+        obj = np.linalg.norm(px(w_close, c_open) - base, axis=-1)
+        cam = np.linalg.norm(px(w_open, c_close) - base, axis=-1)
+        # only points near the picture count: a vertex beside or behind the eye "moves" without bound
+        w, h = proj.width, proj.height
+        near_view = ((-open_s.positions[:, 2] > proj.near) & (-close_s.positions[:, 2] > proj.near)
+                     & (base[:, 0] > -w) & (base[:, 0] < 2 * w) & (base[:, 1] > -h) & (base[:, 1] < 2 * h))
+    return tuple(np.where(near_view, m, np.nan) for m in (total, obj, cam))
+
+
+def _max_finite(values: np.ndarray) -> float:
+    values = values[np.isfinite(values)]
+    return float(values.max()) if len(values) else 0.0
 
 
 def format_report(r: dict) -> str:
@@ -74,10 +105,18 @@ def format_report(r: dict) -> str:
         f"frames      {r['frame_range'][0]:g}..{r['frame_range'][1]:g} at {r['frames_per_second']:g} fps",
         f"shutter     [{r['shutter'][0]:g}, {r['shutter'][1]:g}] at frame {r['frame']:g}",
         f"stage       upAxis {r['up_axis']}, metersPerUnit {r['meters_per_unit']:g}",
-        f"triangles   {r['triangles']} in {len(r['prims'])} prims, {r['moving_prims']} moving on screen",
+        f"triangles   {r['triangles']} in {len(r['prims'])} prims, {r['moving_prims']} moving in the world"
+        f"{', the camera moves' if r['camera_moves'] else ''}",
     ]
     for p in r["prims"]:
-        motion = f"moves up to {p['max_screen_motion_px']:.1f} px" if p["moves_on_screen"] else "static"
+        if not p["moves_on_screen"]:
+            motion = "static"
+        elif not p["moves_in_world"]:
+            motion = f"still; the camera's motion moves it up to {p['max_camera_motion_px']:.1f} px"
+        else:
+            motion = f"moves up to {p['max_object_motion_px']:.1f} px by itself"
+            if p["max_camera_motion_px"] > 1e-3:
+                motion += f", {p['max_screen_motion_px']:.1f} px with the camera's motion"
         extra = ", deforming" if p["deforming"] else ""
         inst = f" ×{p['instances']}" if p["instances"] > 1 else ""
         lines.append(f"  {p['path']}: {p['triangles']} tris{inst}, {motion}{extra}")

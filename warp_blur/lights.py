@@ -143,7 +143,8 @@ def light_table(lights: list[LightPrim], time: float, cam_from_world: np.ndarray
             radiance = radiance * distant_illuminance_factor(UsdLux.DistantLight(lp.prim), normalize, t)
         elif lp.kind == SPHERE:
             sl = UsdLux.SphereLight(lp.prim)
-            scale = float(np.cbrt(abs(np.linalg.det(m_world[:3, :3]))))
+            with np.errstate(all="ignore"):
+                scale = float(np.cbrt(abs(np.linalg.det(m_world[:3, :3]))))
             radius = float(sl.GetRadiusAttr().Get(t) or 0.0) * scale
             if sl.GetTreatAsPointAttr().Get(t):
                 radius = 0.0
@@ -166,6 +167,13 @@ def light_table(lights: list[LightPrim], time: float, cam_from_world: np.ndarray
             if normalize and area > 0:
                 radiance = radiance / area
         row[1:4] = radiance if visible else 0.0
+        if not (np.isfinite(row).all() and np.abs(row).max() < 1e15):
+            # a non-finite transform or size (a damaged stage): the light is dark and casts nothing
+            warn_once(f"light-transform:{lp.prim.GetPath()}",
+                      f"light {lp.prim.GetPath()}: its transform or size at time {time:g} is not finite; "
+                      f"the light is ignored where it is")
+            row = np.zeros(LIGHT_WIDTH, np.float64)
+            row[0] = lp.kind
         rows.append(row)
     if not rows:
         return np.zeros((0, LIGHT_WIDTH), np.float32)

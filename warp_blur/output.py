@@ -94,6 +94,7 @@ def exr_channels(result) -> dict[str, np.ndarray]:
 def write_exr(path: str, result, compression: str = "zip", extra_header: dict | None = None) -> None:
     """Write a result as a float32 EXR with its metadata in the header (atomic)."""
     header = {"compression": COMPRESSIONS[compression], "type": OpenEXR.scanlineimage}
+    header.update(getattr(result, "exr_attributes", None) or {})   # OpenEXR's standard attributes
     for k, v in (getattr(result, "metadata", None) or {}).items():
         header[f"warp_blur.{k}"] = v if isinstance(v, str) else json.dumps(v)
     for k, v in (extra_header or {}).items():

@@ -10,6 +10,8 @@ from typing import Callable
 
 import warp as wp
 
+from . import progress
+
 _pools: dict[int, ThreadPoolExecutor] = {}
 
 
@@ -26,7 +28,12 @@ def _pool(n: int) -> ThreadPoolExecutor:
 def _run_bands(kernel, device: str, threads: int, starts: range, run: Callable[[int], None]) -> None:
     """Compile `kernel` once, then run(start) for each band start from the thread pool."""
     wp.load_module(kernel.module, device=device)
-    list(_pool(threads).map(run, starts))
+    progress.bands_started(len(starts))
+
+    def run_and_report(start: int) -> None:
+        run(start)
+        progress.band_done()
+    list(_pool(threads).map(run_and_report, starts))
 
 
 def _band_size(total: int, threads: int, bands_per_thread: int) -> int:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-from pxr import Usd, UsdGeom, UsdShade, UsdSkel
+from pxr import Sdf, Usd, UsdGeom, UsdShade, UsdSkel
 
 from .errors import InvalidGeometryError
 from .lights import dome_radiance, find_lights, headlight_table, light_table
@@ -52,6 +52,14 @@ class GeomUnit:
         t = Usd.TimeCode(time)
         return all(UsdGeom.Imageable(p).ComputeVisibility(t) != UsdGeom.Tokens.invisible
                    for p in self.visibility_prims)
+
+
+def prototype_unit_name(instancer: str, proto_path: Sdf.Path, sub_path: Sdf.Path) -> str:
+    """A readable name for a PointInstancer prototype's mesh: `/World/Ring (prototype Cone)`, or
+    `/World/Ring (prototype Cone, Body/Mesh)` for a prim inside the prototype."""
+    rel = str(sub_path.MakeRelativePath(proto_path)) if sub_path.HasPrefix(proto_path) else str(sub_path)
+    inside = "" if rel in (".", "") else f", {rel}"
+    return f"{instancer} (prototype {proto_path.name}{inside})"
 
 
 @dataclass
@@ -359,7 +367,7 @@ class Scene:
                     return sub_in_root[None] @ all_transforms(time)[sel] @ inst_w[None]
 
                 self.units.append(GeomUnit(
-                    path=f"{path}[{proto_path.name}]{sub.GetPath()}", prim=sub, local_tris=tris,
+                    path=prototype_unit_name(path, proto_path, sub.GetPath()), prim=sub, local_tris=tris,
                     num_points=npts, points_at=points_at, transforms_at=transforms_at,
                     num_instances=len(sel), corner_colors=colors, corner_uvs=uvs, material=material, flags=flags,
                     blur_scale=blur, visibility_prims=[prim, sub]))

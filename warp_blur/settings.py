@@ -59,6 +59,8 @@ class RenderSettings:
         max_segments: upper bound of motion segments per prim (power of two).
         memory_budget_mb: analytic interval arrays above this render in pixel bands; accumulation
             records still pixels' hits only within it (else renders them at every instant).
+        frame_memory_limit_mb: a frame whose per-pixel buffers are estimated above this is refused
+            before any work (memory.py); None = three quarters of physical memory.
         soft_edge_radius: velocity method: blur radius (pixels) of the soft-edge velocity buffer (0 = off).
         velocity_extrude: velocity method: vertex-trail extrusion (vertices facing the motion at
             shutter close, the others at open) before the gather.
@@ -96,6 +98,7 @@ class RenderSettings:
     segment_time_error: float = 0.001
     max_segments: int = 128
     memory_budget_mb: float = 2048.0
+    frame_memory_limit_mb: float | None = None
     soft_edge_radius: float = 2.0
     velocity_extrude: bool = False
     front_blur: float = 1.0
@@ -128,6 +131,8 @@ class RenderSettings:
             raise SettingsError(f"samples must be between 1 and 65536, got {self.samples}")
         if self.spatial_samples < 1 or self.spatial_samples > 16:
             raise SettingsError(f"spatial samples must be between 1 and 16, got {self.spatial_samples}")
+        if self.frame_memory_limit_mb is not None and not self.frame_memory_limit_mb > 0:
+            raise SettingsError(f"memory limit must be a positive number of MiB, got {self.frame_memory_limit_mb}")
         if self.threads is not None and self.threads < 1:
             raise SettingsError(f"threads must be at least 1, got {self.threads}")
         if self.max_segments < 1 or self.max_segments & (self.max_segments - 1):

@@ -113,6 +113,7 @@ def projection_at(camera: UsdGeom.Camera, frame: float, resolution: tuple[int, i
                   conform_policy: str = "expandAperture") -> Projection:
     """Camera intrinsics read at the frame time, conformed to the image aspect (SPEC §3)."""
     gf_cam: Gf.Camera = camera.GetCamera(Usd.TimeCode(frame))
+    check_intrinsics(camera, gf_cam)   # before the window: a zero aperture has no aspect
     window = gf_cam.frustum.GetWindow()
     w, h = resolution
     win = conform_window((window.GetMin()[0], window.GetMin()[1], window.GetMax()[0], window.GetMax()[1]),
@@ -120,7 +121,6 @@ def projection_at(camera: UsdGeom.Camera, frame: float, resolution: tuple[int, i
     near, far = gf_cam.clippingRange.min, gf_cam.clippingRange.max
     if not (near > 0 and far > near and math.isfinite(near)):
         raise StageError(f"camera {camera.GetPath()} has an invalid clipping range ({near}, {far})")
-    check_intrinsics(camera, gf_cam)
     return Projection(orthographic=gf_cam.projection == Gf.Camera.Orthographic, window=win,
                       near=float(near), far=float(far), width=w, height=h)
 
