@@ -20,7 +20,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 from common import SCENES, save, table, timed_median  # noqa: E402
 
 import warp_blur as wb  # noqa: E402
-from warp_blur.metrics import rmse  # noqa: E402
+from warp_blur.output.metrics import rmse  # noqa: E402
 
 SCENE_FRAMES = {"demo": 12.0, "large": 2.0}
 METHODS = (("analytic", {}), ("stochastic", {"samples": 64}), ("accumulation", {"samples": 64}))

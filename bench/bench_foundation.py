@@ -16,7 +16,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 from common import SCENES, save, table, timed_median  # noqa: E402
 
 import warp_blur as wb  # noqa: E402
-from warp_blur.parallel import default_threads  # noqa: E402
+from warp_blur.core.parallel import default_threads  # noqa: E402
 
 
 def main() -> None:

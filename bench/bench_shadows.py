@@ -24,7 +24,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 from common import OUT, SCENES, save, table, timed_median  # noqa: E402
 
 import warp_blur as wb  # noqa: E402
-from warp_blur.metrics import rmse  # noqa: E402
+from warp_blur.output.metrics import rmse  # noqa: E402
 
 
 def run(renderer: wb.Renderer, frame: float, repeats: int) -> tuple[float, wb.RenderResult]:

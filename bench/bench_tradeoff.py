@@ -23,7 +23,7 @@ from common import OUT, SCENES, table, timed_median  # noqa: E402
 from references import reference  # noqa: E402
 
 import warp_blur as wb  # noqa: E402
-from warp_blur.metrics import max_abs, psnr, rmse  # noqa: E402
+from warp_blur.output.metrics import max_abs, psnr, rmse  # noqa: E402
 
 SCENE_LIST = [  # name, frame, full resolution, reference instants
     ("demo", 12, (640, 480), 4096),

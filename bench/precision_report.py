@@ -24,9 +24,9 @@ sys.path.insert(0, HERE)
 from common import ROOT, save, table  # noqa: E402
 
 import warp_blur as wb  # noqa: E402
-from warp_blur.precision import coverage_precision  # noqa: E402
-from warp_blur.scene import Scene  # noqa: E402
-from warp_blur.stage import choose_camera, open_stage, projection_at, shutter_for_frame  # noqa: E402
+from warp_blur.tools.precision import coverage_precision  # noqa: E402
+from warp_blur.usd.scene import Scene  # noqa: E402
+from warp_blur.usd.stage import choose_camera, open_stage, projection_at, shutter_for_frame  # noqa: E402
 
 
 def float64_depth(scene_path: str, frame: float, res: tuple[int, int]) -> np.ndarray:

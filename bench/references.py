@@ -10,7 +10,7 @@ import os
 import numpy as np
 
 import warp_blur as wb
-from warp_blur.output import read_exr, write_exr
+from warp_blur.output.files import read_exr, write_exr
 
 from common import OUT, ROOT
 

@@ -90,7 +90,7 @@ def judge(code: int, stderr: str, out: str) -> str:
             return "exit 0 without output"
         import numpy as np
 
-        from warp_blur.output import read_exr
+        from warp_blur.output.files import read_exr
         img = read_exr(out)["RGBA"]
         return "ok-render" if np.isfinite(img).all() else "non-finite pixels"
     if code == 2:
@@ -118,7 +118,7 @@ def soak(count: int, seed: int, timeout: float) -> collections.Counter:
             with open(scene, "wb") as f:
                 f.write(data)
             try:
-                p = subprocess.run([sys.executable, "-m", "warp_blur.cli", *render_args(scene, out, method)],
+                p = subprocess.run([sys.executable, "-m", "warp_blur", *render_args(scene, out, method)],
                                    capture_output=True, text=True, timeout=timeout, errors="replace")
                 verdict = judge(p.returncode, p.stderr, out)
             except subprocess.TimeoutExpired:

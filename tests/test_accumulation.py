@@ -8,9 +8,9 @@ from conftest import ACCEPTANCE
 from scenes import two_quads_stage
 
 import warp_blur as wb
-from warp_blur.metrics import rmse
+from warp_blur.output.metrics import rmse
 from warp_blur.methods.accumulation import instants
-from warp_blur.output import read_exr
+from warp_blur.output.files import read_exr
 
 ACCEPT_SCENES = ["diagonal", "spin_edge_on", "occluder_pass", "dolly"]
 

@@ -10,8 +10,8 @@ from conftest import ACCEPTANCE
 from scenes import emissive_quad_stage, lit_stage, moving_layers_stage, ramp_light_stage, shadow_stage, two_quads_stage
 
 import warp_blur as wb
-from warp_blur.metrics import max_abs, rmse
-from warp_blur.output import read_exr
+from warp_blur.output.metrics import max_abs, rmse
+from warp_blur.output.files import read_exr
 
 RES = (64, 48)
 

@@ -13,8 +13,8 @@ import pytest
 from scenes import emissive_quad_stage
 
 import warp_blur as wb
-from warp_blur.cli import main
-from warp_blur.output import read_exr
+from warp_blur.tools.cli import main
+from warp_blur.output.files import read_exr
 
 
 def _shot(path, frames=6):
@@ -33,7 +33,7 @@ def _images(folder):
 
 
 def _cli(*args):
-    return subprocess.Popen([sys.executable, "-m", "warp_blur.cli", *args], stdout=subprocess.PIPE,
+    return subprocess.Popen([sys.executable, "-m", "warp_blur", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
 
 
@@ -171,7 +171,7 @@ def test_the_api_refuses_what_the_cli_refuses(tmp_path, scene_path):
     import io
 
     import warp_blur as wb
-    from warp_blur.cli import main
+    from warp_blur.tools.cli import main
     scene = emissive_quad_stage(scene_path(), translate_samples={0: (-1, 0, 0), 2: (1, 0, 0)})
     cases = [dict(frame=999.0), dict(frame=float("nan")), dict(frame=1.0, resolution=(16384, 16384), method="velocity",
                                                                frame_memory_limit_mb=64.0)]

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from pxr import Gf, Usd, UsdGeom
 
-from warp_blur.camera import conform_window
-from warp_blur.stage import projection_at
+from warp_blur.core.camera import conform_window
+from warp_blur.usd.stage import projection_at
 
 
 def _gf_raster(frustum: Gf.Frustum, p_cam: np.ndarray, w: int, h: int) -> np.ndarray:

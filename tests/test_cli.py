@@ -7,14 +7,14 @@ import sys
 import pytest
 from scenes import emissive_quad_stage
 
-from warp_blur.cli import main
-from warp_blur.errors import UserError
-from warp_blur.output import read_exr
-from warp_blur.stage import output_path_for_frame, parse_frames
+from warp_blur.tools.cli import main
+from warp_blur.core.errors import UserError
+from warp_blur.output.files import read_exr
+from warp_blur.usd.stage import output_path_for_frame, parse_frames
 
 
 def _run(*args):
-    p = subprocess.run([sys.executable, "-m", "warp_blur.cli", *args], capture_output=True, text=True, timeout=300)
+    p = subprocess.run([sys.executable, "-m", "warp_blur", *args], capture_output=True, text=True, timeout=300)
     return p.returncode, p.stdout, p.stderr
 
 
@@ -120,7 +120,7 @@ def test_compare_exit_codes(tmp_path, scene_path):
 def _subparsers():
     import argparse
 
-    from warp_blur.cli import _build_parser
+    from warp_blur.tools.cli import _build_parser
     parser = _build_parser()
     action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     return action.choices
@@ -168,7 +168,7 @@ def test_a_single_frame_shows_its_progress_on_a_terminal(tmp_path, scene_path):
     out = tmp_path / "one.exr"
     scene = emissive_quad_stage(scene_path(), translate_samples={0: (-1, 0, 0), 2: (1, 0, 0)})
     master, slave = pty.openpty()
-    p = subprocess.Popen([sys.executable, "-m", "warp_blur.cli", "render", scene, "-o", str(out), "--frame", "1",
+    p = subprocess.Popen([sys.executable, "-m", "warp_blur", "render", scene, "-o", str(out), "--frame", "1",
                           "--resolution", "64x48", "--samples", "4", "--threads", "2", "--method", "stochastic"],
                          stdout=slave, stderr=subprocess.PIPE, text=True)
     os.close(slave)

@@ -13,7 +13,7 @@ import pytest
 from scenes import emissive_quad_stage, moving_layers_stage
 
 import warp_blur as wb
-from warp_blur.metrics import rmse
+from warp_blur.output.metrics import rmse
 
 RES = (48, 36)
 TOL = {"analytic": 3e-3, "stochastic": 3e-2, "accumulation": 1e-2}

@@ -8,10 +8,10 @@ from authoring import add_mesh, new_stage
 from pxr import Gf, Usd, UsdGeom
 
 import warp_blur as wb
-from warp_blur.errors import StageError
-from warp_blur.framing import FRAMING_CAMERA_PATH, place_framing_camera, stage_bounds
-from warp_blur.info import scene_report
-from warp_blur.stage import choose_camera, open_stage
+from warp_blur.core.errors import StageError
+from warp_blur.usd.framing import FRAMING_CAMERA_PATH, place_framing_camera, stage_bounds
+from warp_blur.tools.info import scene_report
+from warp_blur.usd.stage import choose_camera, open_stage
 
 
 def _box_stage(path: str, up: str, lo=(-3.0, 0.5, -1.0), hi=(5.0, 2.5, 2.0)) -> str:

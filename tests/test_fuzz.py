@@ -6,7 +6,7 @@ import os
 import pytest
 from fuzz import judge, mutants, render_args
 
-from warp_blur.cli import main
+from warp_blur.tools.cli import main
 
 SEED = 20261202
 COUNT = 28   # every shipped stage under every method; `python tests/fuzz.py --many N` soaks

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import warp_blur as wb
-from warp_blur import log
+from warp_blur.core import log
 
 STAGE = """#usda 1.0
 (
@@ -82,7 +82,7 @@ def _cli(*args):
     import contextlib
     import io
 
-    from warp_blur.cli import main
+    from warp_blur.tools.cli import main
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
         code = main(list(args))
@@ -135,8 +135,8 @@ def test_temporaries_of_live_runs_survive_and_outputs_follow_the_umask(tmp_path,
     import socket
     import subprocess
 
-    from warp_blur.batch import remove_stale_temporaries
-    from warp_blur.output import TEMP_PREFIX
+    from warp_blur.tools.batch import remove_stale_temporaries
+    from warp_blur.output.files import TEMP_PREFIX
     host = socket.gethostname().replace("-", "_")
     dead = subprocess.Popen(["true"])
     dead.wait()
@@ -203,7 +203,7 @@ def test_usds_own_diagnostics_stay_hidden_unless_verbose(tmp_path):
     import subprocess
     import sys
     scene = _nan_translate_stage(tmp_path)
-    args = [sys.executable, "-m", "warp_blur.cli", "render", scene, "-o", str(tmp_path / "a.exr"),
+    args = [sys.executable, "-m", "warp_blur", "render", scene, "-o", str(tmp_path / "a.exr"),
             "--resolution", "16x12", "--samples", "1"]
     quiet = subprocess.run(args, capture_output=True, text=True, timeout=300)
     lines = [ln for ln in quiet.stderr.splitlines() if ln.strip()]
@@ -221,5 +221,5 @@ def test_a_frame_too_large_for_memory_is_refused_before_any_work(tmp_path, scene
     with pytest.raises(wb.SettingsError, match="memory limit"):
         wb.Renderer(_quad(scene_path), resolution=(4096, 4096),
                     settings=wb.RenderSettings(method="velocity", frame_memory_limit_mb=100))
-    from warp_blur.memory import frame_bytes
+    from warp_blur.core.memory import frame_bytes
     assert frame_bytes("analytic", 100, 100, 2) == 4 * frame_bytes("analytic", 100, 100, 1)

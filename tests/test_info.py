@@ -7,7 +7,7 @@ import sys
 
 from conftest import SCENES
 
-from warp_blur.info import format_report, scene_report
+from warp_blur.tools.info import format_report, scene_report
 
 
 def test_object_and_camera_motion_are_reported_apart():
@@ -29,6 +29,6 @@ def test_prototype_names_are_readable():
 
 
 def test_info_into_a_closed_pipe_prints_no_traceback():
-    p = subprocess.run(f"'{sys.executable}' -m warp_blur.cli info '{os.path.join(SCENES, 'demo.usda')}' --json | head -1",
+    p = subprocess.run(f"'{sys.executable}' -m warp_blur.tools.cli info '{os.path.join(SCENES, 'demo.usda')}' --json | head -1",
                        shell=True, capture_output=True, text=True, timeout=300)
     assert p.stdout.strip() == "{" and "Traceback" not in p.stderr

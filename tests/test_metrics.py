@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from warp_blur.metrics import compare_images, max_abs, psnr, rmse, share_above, ssim
+from warp_blur.output.metrics import compare_images, max_abs, psnr, rmse, share_above, ssim
 
 
 def test_hand_computed_values():

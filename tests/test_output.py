@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from warp_blur.api import RenderResult
-from warp_blur.errors import UserError
-from warp_blur.output import read_exr, write_exr, write_image
+from warp_blur.core.errors import UserError
+from warp_blur.output.files import read_exr, write_exr, write_image
 
 
 def _result():

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from conftest import SCENES
 
-from warp_blur.precision import compare_coverage, coverage_precision
+from warp_blur.tools.precision import compare_coverage, coverage_precision
 
 SLOT = 1.0 / 1024
 
@@ -28,7 +28,7 @@ def test_closed_form_translating_triangle_in_both_precisions():
     res = compare_coverage(p0, p1, np.zeros((1, 3)), np.array([[0.0, 0.5 / 5.0, -1.0]]), np.array([[0, 1, 2]]))
     assert res.covered == 1 and res.max_dt < 1e-6
     # at y = 0.5 the triangle spans x in [-0.5, 0.5]: width 1 over a path of 4
-    from warp_blur.precision import _run
+    from warp_blur.tools.precision import _run
     c64, n64 = _run(p0, p1, np.zeros((1, 3)), np.array([[0.0, 0.5 / 5.0, -1.0]]), np.array([[0, 1, 2]]), True, "cpu")
     assert n64[0] == 1 and abs(c64[0] - 0.25) < 1e-12
 

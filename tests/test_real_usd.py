@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import warp_blur as wb
-from warp_blur.errors import StageError
+from warp_blur.core.errors import StageError
 
 ROOT = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "real_usd")
 FILES = sorted(p for ext in ("usd", "usda", "usdc", "usdz")

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from pxr import Gf, UsdGeom, Vt
 
-from warp_blur.errors import InvalidGeometryError
-from warp_blur.scene import Scene, vertex_normals, vertex_normals_since
-from warp_blur.stage import Shutter, choose_camera, open_stage
+from warp_blur.core.errors import InvalidGeometryError
+from warp_blur.usd.scene import Scene, vertex_normals, vertex_normals_since
+from warp_blur.usd.stage import Shutter, choose_camera, open_stage
 
 
 def _scene(path, frame=1.0, shutter=(0.5, 1.5), **kw):
@@ -135,7 +135,7 @@ def test_messy_usd_references_payloads_instances_matrices(tmp_path, scene_path):
     from authoring import add_camera, new_stage
     from pxr import Gf, Usd, UsdGeom
 
-    from warp_blur import log
+    from warp_blur.core import log
     asset = str(tmp_path / "asset.usda")
     a = Usd.Stage.CreateNew(asset)
     root = UsdGeom.Xform.Define(a, "/Asset")

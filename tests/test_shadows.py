@@ -10,9 +10,9 @@ import pytest
 from scenes import shadow_stage
 
 import warp_blur as wb
-from warp_blur.metrics import max_abs, rmse
-from warp_blur import shadow_maps
-from warp_blur.shadow_maps import fit_faces, light_frame, sample_pattern
+from warp_blur.output.metrics import max_abs, rmse
+from warp_blur.shadows import maps as shadow_maps
+from warp_blur.shadows.layout import fit_faces, light_frame, sample_pattern
 
 RES = (128, 96)
 MOVING = {0.5: (-1.0, 1.0, 0.0), 1.5: (1.0, 1.0, 0.0)}   # the occluder crosses 2 units in the shutter
@@ -201,7 +201,7 @@ def test_still_occluders_render_once_under_a_still_light(scene_path, monkeypatch
     """Direct maps under a light that holds still: the still ground renders once into a base map
     and each instant renders only the moving occluders over it; the maps (and so the image) equal
     rendering every triangle at every instant."""
-    from warp_blur import shadow_maps
+    from warp_blur.shadows import maps as shadow_maps
     path = shadow_stage(scene_path(), occluder_samples=MOVING, mover=True)
     kw = {"shadows": "direct"} if method == "analytic" else {"shadows": "direct", "samples": 8}
     based = render(path, method, **kw)
@@ -224,7 +224,7 @@ def test_texels_that_never_change_take_one_lookup_for_a_time_span(scene_path, mo
     """A static receiver's interval averages the shadow over its whole span; where the light holds
     still and the texels read never change (most of the map), one lookup stands for the span.
     The image equals looking up every instant."""
-    from warp_blur import shadow_maps
+    from warp_blur.shadows import maps as shadow_maps
     path = shadow_stage(scene_path(), occluder_samples=MOVING)
     steady = render(path, "analytic", shadows="direct")
     assert 0.0 < steady.stats["shadow_texels_varying"] < 0.3

@@ -9,8 +9,8 @@ from conftest import SCENES
 from pxr import Gf, Usd, UsdGeom, UsdSkel
 
 import warp_blur as wb
-from warp_blur.scene import Scene
-from warp_blur.stage import Shutter, choose_camera, open_stage
+from warp_blur.usd.scene import Scene
+from warp_blur.usd.stage import Shutter, choose_camera, open_stage
 
 SKINNED = os.path.join(SCENES, "skinned.usda")
 

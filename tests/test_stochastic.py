@@ -9,9 +9,9 @@ from conftest import ACCEPTANCE
 from scenes import two_quads_stage
 
 import warp_blur as wb
-from warp_blur.errors import SettingsError
-from warp_blur.metrics import rmse
-from warp_blur.output import read_exr
+from warp_blur.core.errors import SettingsError
+from warp_blur.output.metrics import rmse
+from warp_blur.output.files import read_exr
 
 RES = (64, 48)
 

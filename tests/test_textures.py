@@ -8,7 +8,7 @@ from authoring import add_camera, add_quad, add_textured_material, new_stage, se
 from PIL import Image
 
 import warp_blur as wb
-from warp_blur.textures import mip_chain, srgb_to_linear
+from warp_blur.usd.textures import mip_chain, srgb_to_linear
 
 W, H = 96, 64
 

@@ -9,8 +9,8 @@ from conftest import ACCEPTANCE
 from scenes import emissive_quad_stage, lit_stage
 
 import warp_blur as wb
-from warp_blur.metrics import rmse
-from warp_blur.output import read_exr
+from warp_blur.output.metrics import rmse
+from warp_blur.output.files import read_exr
 
 RES = (64, 48)
 

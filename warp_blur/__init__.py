@@ -12,14 +12,15 @@ from __future__ import annotations
 
 import importlib
 
-from .version import __version__
+from .core.version import __version__
 
 _EXPORTS = {
     "render": ".api", "Renderer": ".api", "RenderResult": ".api",
-    "render_frames": ".batch",
-    "UserError": ".errors", "StageError": ".errors", "SettingsError": ".errors", "InvalidGeometryError": ".errors",
-    "read_exr": ".output", "write_exr": ".output", "write_image": ".output", "write_png": ".output",
-    "METHODS": ".settings", "RenderSettings": ".settings",
+    "render_frames": ".tools.batch",
+    "UserError": ".core.errors", "StageError": ".core.errors", "SettingsError": ".core.errors",
+    "InvalidGeometryError": ".core.errors",
+    "read_exr": ".output.files", "write_exr": ".output.files", "write_image": ".output.files", "write_png": ".output.files",
+    "METHODS": ".core.settings", "RenderSettings": ".core.settings",
 }
 
 __all__ = ["render", "render_frames", "Renderer", "RenderResult", "RenderSettings", "write_exr", "write_png", "write_image",

@@ -15,19 +15,19 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from . import log, progress
-from .frame import FrameContext
-from .framing import is_framing_camera, place_framing_camera
-from .errors import SettingsError, StageError, UserError
-from .exr_attributes import standard_attributes
-from .memory import check_frame_fits
+from .core import log, progress
+from .methods.frame import FrameContext
+from .usd.framing import is_framing_camera, place_framing_camera
+from .core.errors import SettingsError, StageError, UserError
+from .output.exr_attributes import standard_attributes
+from .core.memory import check_frame_fits
 from .methods import get_method
-from .scene import Scene
-from .settings import RenderSettings
-from .stage import (choose_camera, choose_resolution, conform_policy, open_stage, projection_at,
+from .usd.scene import Scene
+from .core.settings import RenderSettings
+from .usd.stage import (choose_camera, choose_resolution, conform_policy, open_stage, projection_at,
                     shutter_for_frame)
 
-from .version import __version__
+from .core.version import __version__
 
 
 @dataclass

@@ -8,7 +8,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..frame import FrameContext
+from .frame import FrameContext
 
 MethodFn = Callable[[FrameContext], np.ndarray]
 

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from ..binning import TILE_SIZE, entry_pixel_bounds
-from ..frame import FrameContext
+from ..raster.binning import TILE_SIZE, entry_pixel_bounds
+from .frame import FrameContext
 
 #: tests switch this off to compare against rendering every pixel at every instant
 STATIC_TILES = True

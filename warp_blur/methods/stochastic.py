@@ -15,12 +15,12 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..frame import FrameContext
-from ..kernel_types import Bins, Geometry, Shading, View
-from ..parallel import launch_pixels
-from ..raster import add_pixel, box_rejects, pixel_tile
-from ..rays import entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin, static_entry_hit
-from ..shading import shade_entry_hit, shade_entry_hit_span
+from .frame import FrameContext
+from ..kernels.kernel_types import Bins, Geometry, Shading, View
+from ..core.parallel import launch_pixels
+from ..kernels.raster import add_pixel, box_rejects, pixel_tile
+from ..kernels.rays import entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin, static_entry_hit
+from ..kernels.shading import shade_entry_hit, shade_entry_hit_span
 from .analytic.coverage import DEGENERATE_TOL_F32, MAX_SPAN_PIECES, next_breakpoint, piece_covered, prism_edges
 from .analytic.intervals import nearest_static
 from .analytic.segments import prepare_motion

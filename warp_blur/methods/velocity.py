@@ -28,11 +28,11 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..device_data import make_bins, make_geometry
-from ..frame import FrameContext
-from ..parallel import launch_pixels
-from ..raster import render_depth_motion, render_sharp_depth_motion
-from ..scene import vertex_normals
+from ..raster.device_data import make_bins, make_geometry
+from .frame import FrameContext
+from ..core.parallel import launch_pixels
+from ..kernels.raster import render_depth_motion, render_sharp_depth_motion
+from ..usd.scene import vertex_normals
 
 SOFT_Z = wp.constant(0.01)
 

@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ...frame import FrameContext
-from ...parallel import BandCounter, launch_pixels
+from ..frame import FrameContext
+from ...core.parallel import BandCounter, launch_pixels
 from .intervals import classify_samples, fill_intervals
 from .resolve import resolve_bitmask, resolve_exact
 from .segments import prepare_motion

@@ -16,7 +16,7 @@ from typing import Any
 
 import warp as wp
 
-from ...rays import edge_cross, edge_owns
+from ...kernels.rays import edge_cross, edge_owns
 
 #: coverage breakpoints per span: up to two roots for each of three edges, so at most 7 pieces
 MAX_SPAN_PIECES = wp.constant(7)

@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import warp as wp
 
-from ...kernel_types import Bins, Geometry, Shading, View
-from ...raster import add_pixel, box_rejects, pixel_tile
-from ...rays import intersect_triangle, static_entry_hit
+from ...kernels.kernel_types import Bins, Geometry, Shading, View
+from ...kernels.raster import add_pixel, box_rejects, pixel_tile
+from ...kernels.rays import intersect_triangle, static_entry_hit
 from .coverage import DEGENERATE_TOL_F32, MAX_SPAN_PIECES, next_breakpoint, piece_covered, prism_edges
 from .moving import Moving, depth_at, depth_range, entry_moving, eye_relative, in_range, sample_ray
 from .radiance import boundary_radiance, lerp_in_time, radiance_plan, sub_piece_time

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import warp as wp
 
-from ...kernel_types import Geometry, View
-from ...rays import hit_from_edges, pixel_ray_direction, pixel_ray_origin
+from ...kernels.kernel_types import Geometry, View
+from ...kernels.rays import hit_from_edges, pixel_ray_direction, pixel_ray_origin
 
 
 @wp.struct

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import warp as wp
 
-from ...kernel_types import Geometry, Shading, View
-from ...shading import max_component, shade_entry_hit, shade_entry_hit_span
+from ...kernels.kernel_types import Geometry, Shading, View
+from ...kernels.shading import max_component, shade_entry_hit, shade_entry_hit_span
 from .moving import Moving, plane_hit
 
 SHADE_TOLERANCE = wp.constant(1.0 / 256.0)

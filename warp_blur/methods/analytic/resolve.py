@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from ...kernel_types import Geometry, Shading, View
+from ...kernels.kernel_types import Geometry, Shading, View
 from .moving import entry_moving, entry_time, sample_ray
 from .radiance import boundary_radiance, lerp_in_time, radiance_plan, sub_piece_time
 

@@ -19,10 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 from pxr import UsdGeom
 
-from ...camera import Projection
-from ...frame import MOTION_PROBES
-from ...log import warn_once
-from ...scene import Scene
+from ...core.camera import Projection
+from ..frame import MOTION_PROBES
+from ...core.log import warn_once
+from ...usd.scene import Scene
 
 
 @dataclass
@@ -50,8 +50,8 @@ class MotionPlan:
 
     def sample(self, u: float):
         """The planned scene at shutter time u (positions and lights linear between knots) as a
-        shadow_maps.Sample."""
-        from ...shadow_maps import Sample
+        shadows.layout.Sample."""
+        from ...shadows.layout import Sample
         k_max = self.num_segments
         x = min(max(u, 0.0), 1.0) * k_max
         k = min(int(x), k_max - 1) if k_max > 0 else 0
@@ -255,7 +255,7 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
 def prepare_motion(ctx):
     """The moving scene of a frame on the device, as the analytic and stochastic methods use it:
     (plan, Geometry, (Bins of the static entries, Bins of the moving entries), Shading, View)."""
-    from ...device_data import make_bins, make_geometry, make_shading
+    from ...raster.device_data import make_bins, make_geometry, make_shading
     s = ctx.settings
     with ctx.timed("segments"):
         plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.segment_error_px,

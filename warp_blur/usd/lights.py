@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from pxr import Gf, Usd, UsdGeom, UsdLux
 
-from .log import warn_once
+from ..core.log import warn_once
 
 LIGHT_WIDTH = 18
 DISTANT, SPHERE, RECT, DISK = 0, 1, 2, 3

@@ -10,18 +10,19 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from .binning import TILE_SIZE, TileBins, bin_entries, entry_pixel_bounds
-from .camera import Projection
-from .device_data import TriangleTables, make_bins, make_geometry, make_shading, make_view
-from .kernel_types import Geometry
-from . import progress
-from .parallel import launch_pixels
-from .raster import render_depth_motion, render_sharp, shade_recorded
-from .scene import Scene, Snapshot
-from .settings import RenderSettings
-from .shadow_maps import Sample, ShadowMaps, ShadowOptions, lit_materials
-from .stage import Shutter
-from .textures import texture_lod
+from ..raster.binning import TILE_SIZE, TileBins, bin_entries, entry_pixel_bounds
+from ..core.camera import Projection
+from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_shading, make_view
+from ..kernels.kernel_types import Geometry
+from ..core import progress
+from ..core.parallel import launch_pixels
+from ..kernels.raster import render_depth_motion, render_sharp, shade_recorded
+from ..usd.scene import Scene, Snapshot
+from ..core.settings import RenderSettings
+from ..shadows.layout import Sample, ShadowOptions
+from ..shadows.maps import ShadowMaps, lit_materials
+from ..usd.stage import Shutter
+from ..usd.textures import texture_lod
 
 
 #: Shutter fractions probed to decide that nothing moves. Open, centre and close alone alias

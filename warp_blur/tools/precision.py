@@ -14,11 +14,11 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import warp as wp
 
-from .binning import entry_pixel_bounds
-from .methods.analytic.coverage import DEGENERATE_TOL_F32, DEGENERATE_TOL_F64, coverage_times
-from .methods.analytic.segments import plan_motion
-from .scene import Scene
-from .stage import choose_camera, open_stage, projection_at, shutter_for_frame
+from ..raster.binning import entry_pixel_bounds
+from ..methods.analytic.coverage import DEGENERATE_TOL_F32, DEGENERATE_TOL_F64, coverage_times
+from ..methods.analytic.segments import plan_motion
+from ..usd.scene import Scene
+from ..usd.stage import choose_camera, open_stage, projection_at, shutter_for_frame
 
 
 @dataclass

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from pxr import Usd, UsdShade
 
-from .log import warn_once
+from ..core.log import warn_once
 from .textures import TextureSet
 
 MATERIAL_WIDTH = 24

@@ -17,8 +17,8 @@ import math
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom
 
-from .errors import StageError
-from .log import warn_once
+from ..core.errors import StageError
+from ..core.log import warn_once
 
 FRAMING_CAMERA_PATH = "/WarpBlurFramingCamera"
 _FOCAL_LENGTH = 50.0

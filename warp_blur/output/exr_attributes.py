@@ -18,8 +18,8 @@ import os
 
 import numpy as np
 
-from .camera import Projection
-from .version import __version__
+from ..core.camera import Projection
+from ..core.version import __version__
 
 #: CIE xy of the Rec.709 / sRGB primaries and D65 white point: the renderer's linear RGB.
 REC709_CHROMATICITIES = (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290)

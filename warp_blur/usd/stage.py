@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdRender, UsdUtils
 
-from .camera import Projection, conform_window
-from .errors import StageError, UserError
+from ..core.camera import Projection, conform_window
+from ..core.errors import StageError, UserError
 from .framing import FRAMING_CAMERA_PATH, define_framing_camera
-from .log import warn_once
+from ..core.log import warn_once
 
 DEFAULT_RESOLUTION = (640, 480)
 

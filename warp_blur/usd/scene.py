@@ -14,9 +14,9 @@ from typing import Callable
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdShade, UsdSkel
 
-from .errors import InvalidGeometryError
+from ..core.errors import InvalidGeometryError
 from .lights import dome_radiance, find_lights, headlight_table, light_table
-from .log import warn_once
+from ..core.log import warn_once
 from .materials import MaterialTable
 from .stage import Shutter
 from .primvars import corner_primvar

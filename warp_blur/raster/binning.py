@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import Projection
+from ..core.camera import Projection
 
 TILE_SIZE = 16
 

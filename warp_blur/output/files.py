@@ -12,7 +12,7 @@ import numpy as np
 import OpenEXR
 from PIL import Image
 
-from .errors import UserError
+from ..core.errors import UserError
 
 COMPRESSIONS = {
     "zip": OpenEXR.ZIP_COMPRESSION, "zips": OpenEXR.ZIPS_COMPRESSION, "piz": OpenEXR.PIZ_COMPRESSION,

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 from pxr import UsdGeom
 
-from .lights import DISTANT, DISK, RECT, SPHERE
-from .framing import is_framing_camera, place_framing_camera
-from .memory import frame_bytes
-from .scene import Scene
-from .settings import METHODS
-from .stage import (choose_camera, choose_resolution, conform_policy, open_stage, projection_at,
+from ..usd.lights import DISTANT, DISK, RECT, SPHERE
+from ..usd.framing import is_framing_camera, place_framing_camera
+from ..core.memory import frame_bytes
+from ..usd.scene import Scene
+from ..core.settings import METHODS
+from ..usd.stage import (choose_camera, choose_resolution, conform_policy, open_stage, projection_at,
                     shutter_for_frame)
 
 _LIGHT_NAMES = {DISTANT: "distant", SPHERE: "sphere", RECT: "rect", DISK: "disk"}

@@ -6,9 +6,9 @@ import numpy as np
 import warp as wp
 
 from .binning import TileBins
-from .camera import Projection
-from .kernel_types import Bins, Geometry, Shading, View
-from .shadow_lookup import FACE_WIDTH
+from ..core.camera import Projection
+from ..kernels.kernel_types import Bins, Geometry, Shading, View
+from ..kernels.shadow_lookup import FACE_WIDTH
 
 
 def device_array(a: np.ndarray, dtype, device: str, min_len: int = 1):
@@ -112,7 +112,7 @@ def instant_frames(lights: np.ndarray, times: int) -> np.ndarray:
 def texture_arrays(textures, device: str) -> tuple:
     """The frame's textures (a textures.TextureSet, or None) on the device, uploaded once."""
     if textures is None:
-        from .textures import TextureSet
+        from ..usd.textures import TextureSet
         textures = _NO_TEXTURES.setdefault(device, TextureSet())
     cached = textures.device_arrays.get(device)
     if cached is None:
@@ -129,7 +129,7 @@ _NO_TEXTURES: dict = {}
 def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, device: str,
                  shadows=None, options=None, textures=None) -> Shading:
     """lights: (L+1, NL, LIGHT_WIDTH) tables at L+1 knots over the shutter; shadows: a
-    shadow_maps.ShadowData (or None: no light casts shadows) with its ShadowOptions; textures:
+    shadows.layout.ShadowData (or None: no light casts shadows) with its ShadowOptions; textures:
     the frame's textures.TextureSet (None: none)."""
     s = Shading()
     s.tex_texels, s.tex_levels, s.tex_textures, s.tex_bindings = texture_arrays(textures, device)
@@ -174,7 +174,7 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
 
 
 def face_slots(data) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
-    """The kernels' layout of a frame's maps (a shadow_maps.ShadowData): (maps (slots, S, S, B) float32 with each face's B
+    """The kernels' layout of a frame's maps (a shadows.layout.ShadowData): (maps (slots, S, S, B) float32 with each face's B
     instants side by side, faces (slots, FACE_WIDTH), varying (slots, S, S) uint8 or None, lights
     (NL, 3) [first slot or -1, samples, faces]); slot first + m F + f is sample m, face f."""
     b, s = data.times, data.size

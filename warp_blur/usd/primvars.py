@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from pxr import Usd, UsdGeom
 
-from .log import warn_once
+from ..core.log import warn_once
 
 
 def corner_primvar(prim: Usd.Prim, name: str, time: Usd.TimeCode, tris: np.ndarray, face_of_tri: np.ndarray,

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .log import warn_once
+from ..core.log import warn_once
 
 WRAP = {"repeat": 0, "mirror": 1, "clamp": 2, "black": 3, "useMetadata": 0}
 CHANNEL = {"rgb": 0, "r": 1, "g": 2, "b": 3, "a": 4}

@@ -17,10 +17,10 @@ import time
 from typing import TYPE_CHECKING
 
 from . import native_stderr
-from .errors import UserError
+from ..core.errors import UserError
 
 if TYPE_CHECKING:
-    from .settings import RenderSettings
+    from ..core.settings import RenderSettings
 
 
 class _Parser(argparse.ArgumentParser):
@@ -41,7 +41,7 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 def _version() -> str:
     from importlib.metadata import PackageNotFoundError, version
 
-    from .version import __version__
+    from ..core.version import __version__
 
     def of(dist: str) -> str:
         try:
@@ -173,8 +173,8 @@ def _build_parser() -> argparse.ArgumentParser:
 
 
 def settings_from_args(args) -> "RenderSettings":
-    from .settings import RenderSettings
-    from .stage import parse_shutter
+    from ..core.settings import RenderSettings
+    from ..usd.stage import parse_shutter
     aovs = tuple(a.strip() for a in args.aov.split(",") if a.strip())
     return RenderSettings(
         method=args.method, samples=args.samples, time_bits=args.time_bits, quality=args.quality,
@@ -213,9 +213,9 @@ def _cmd_render(args) -> int:
 
     from tqdm import tqdm
 
-    from .api import Renderer
+    from ..api import Renderer
     from .batch import FrameTask, execute, remove_stale_temporaries
-    from .stage import output_path_for_frame, parse_frames, parse_resolution
+    from ..usd.stage import output_path_for_frame, parse_frames, parse_resolution
 
     settings = settings_from_args(args)
     resolution = parse_resolution(args.resolution) if args.resolution else None
@@ -235,7 +235,7 @@ def _cmd_render(args) -> int:
     cam = str(renderer.camera.GetPath())
     settings_dict = {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
     remove_stale_temporaries(paths)
-    from .output import check_writable
+    from ..output.files import check_writable
     for folder_path in {os.path.dirname(os.path.abspath(p)): p for p in paths}.values():
         check_writable(folder_path)   # a read-only or missing folder fails before any frame renders
     tasks, skipped = [], 0
@@ -257,7 +257,7 @@ def _cmd_render(args) -> int:
     single = len(frames) == 1
     frame_bar = None
     if single and tasks and not args.quiet and sys.stdout.isatty() and args.workers == 1 and not args.cluster:
-        from . import progress   # one frame on a terminal: its stages and pixel bands
+        from ..core import progress   # one frame on a terminal: its stages and pixel bands
         frame_bar = tqdm(total=0, unit="band", file=sys.stderr, dynamic_ncols=True, leave=False,
                          bar_format="{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} bands [{elapsed}]")
         progress.listen(progress.TqdmFrameProgress(frame_bar))
@@ -273,7 +273,7 @@ def _cmd_render(args) -> int:
         raise
     finally:
         if frame_bar is not None:
-            from . import progress
+            from ..core import progress
             progress.listen(None)
             frame_bar.close()
     bar.close()
@@ -312,8 +312,8 @@ def list_results(results, bar, args, failures: list, single: bool) -> int:
 def _cmd_compare(args) -> int:
     import numpy as np
 
-    from .metrics import compare_images
-    from .output import read_exr, write_exr_channels
+    from ..output.metrics import compare_images
+    from ..output.files import read_exr, write_exr_channels
     a, b = read_exr(args.a), read_exr(args.b)
     if "RGBA" not in a or "RGBA" not in b:
         raise UserError("compare needs RGB(A) channels in both images")
@@ -335,7 +335,7 @@ def _cmd_compare(args) -> int:
 
 def _cmd_info(args) -> int:
     from .info import scene_report
-    from .stage import parse_resolution
+    from ..usd.stage import parse_resolution
     report = scene_report(args.scene, camera=args.camera, frame=args.frame,
                           resolution=parse_resolution(args.resolution) if args.resolution else None)
     if args.json:

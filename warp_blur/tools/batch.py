@@ -12,7 +12,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from typing import Callable, Iterator
 
-from .errors import UserError
+from ..core.errors import UserError
 
 
 @dataclass(frozen=True)
@@ -34,9 +34,9 @@ _renderers: dict = {}
 
 def run_task(task: FrameTask) -> dict:
     """Render and write one frame (in whatever process runs it); never raises for a frame error."""
-    from .api import Renderer
-    from .output import output_fingerprint_write
-    from .settings import RenderSettings
+    from ..api import Renderer
+    from ..output.files import output_fingerprint_write
+    from ..core.settings import RenderSettings
     t0 = time.perf_counter()
     try:
         key = (task.scene, task.camera, task.resolution, tuple(sorted((k, repr(v)) for k, v in task.settings.items())))
@@ -64,7 +64,7 @@ def remove_stale_temporaries(outputs: list[str]) -> int:
     (output.temporary_prefix) whose owner is a process of this host that no longer runs."""
     import socket
 
-    from .output import TEMP_PREFIX
+    from ..output.files import TEMP_PREFIX
     host = socket.gethostname().replace("-", "_")
     removed = 0
     for folder in {os.path.dirname(os.path.abspath(p)) for p in outputs}:
@@ -161,7 +161,7 @@ def render_frames(scene: str, frames: list[float], *, settings=None, camera: str
                   progress: Callable[[int, int, float], None] | None = None) -> Iterator[tuple[float, object]]:
     """Python API for pipelines: yield (frame, RenderResult) for each frame, in order, from one
     opened stage; progress(done, total, frame) is called after each frame."""
-    from .api import Renderer
+    from ..api import Renderer
     renderer = Renderer(scene, camera=camera, resolution=resolution, settings=settings)
     for i, frame in enumerate(frames):
         result = renderer.render(float(frame))

@@ -1,0 +1,1 @@
+"""Files and figures: EXR/PNG writing (atomic), OpenEXR standard attributes, image metrics."""

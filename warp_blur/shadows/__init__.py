@@ -1,0 +1,1 @@
+"""Shadow maps in motion: lights' faces and samples, maps rendered, shared or warped over the shutter."""
