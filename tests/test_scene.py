@@ -188,3 +188,27 @@ def test_normals_recomputed_around_moved_vertices_only_are_bit_identical():
     np.testing.assert_array_equal(since, full)
     assert not np.array_equal(full, vertex_normals(before, tris))
     assert vertex_normals_since(full, after, after, tris) is full   # nothing moved: nothing done
+
+
+@pytest.mark.parametrize("indices,positions", [([0, -1, 0], 3), ([0, 7, 0], 3), ([0, 0, 0], 2)])
+def test_an_invalid_point_instancer_is_named_or_skipped(scene_path, indices, positions):
+    """protoIndices outside the prototypes, or positions USD cannot match to them: an error naming
+    the instancer (found by the fuzzer as a raw IndexError), or dropped with --skip-invalid."""
+    from authoring import add_camera, add_quad, new_stage
+    from warp_blur.core import log
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    add_quad(stage, "/World/Quad", 1.0, 1.0, translate=(0, 0, -2))
+    inst = UsdGeom.PointInstancer.Define(stage, "/World/Inst")
+    cube = UsdGeom.Cube.Define(stage, "/World/Inst/Protos/Cube")
+    inst.CreatePrototypesRel().SetTargets([cube.GetPath()])
+    inst.CreateProtoIndicesAttr(Vt.IntArray(indices))
+    inst.CreatePositionsAttr(Vt.Vec3fArray([Gf.Vec3f(i, 0, 0) for i in range(positions)]))
+    stage.GetRootLayer().Save()
+    with pytest.raises(InvalidGeometryError, match="/World/Inst"):
+        _scene(path)
+    log.reset()
+    _, _, scene = _scene(path, skip_invalid=True)
+    assert [u.path for u in scene.units] == ["/World/Quad"]
+    assert any("/World/Inst" in w for w in log.take_warnings())

@@ -314,10 +314,19 @@ class Scene:
         proto_indices = np.asarray(inst.GetProtoIndicesAttr().Get(t) or [], np.int64)
         if len(proto_indices) == 0:
             return
+        bad = proto_indices[(proto_indices < 0) | (proto_indices >= len(protos))]
+        if len(bad):
+            if self._invalid(path, f"protoIndices hold {int(bad[0])}, outside the {len(protos)} prototypes"):
+                return
         mask = inst.ComputeMaskAtTime(t)
-        mask = np.ones(len(proto_indices), bool) if not mask else np.asarray(mask, bool)
+        mask = np.ones(len(proto_indices), bool) if not mask or len(mask) != len(proto_indices) else np.asarray(mask, bool)
         base = self.frame
         n_all = len(proto_indices)
+        at_frame = inst.ComputeInstanceTransformsAtTime(t, t)
+        if at_frame is None or len(at_frame) != n_all:   # USD refuses the instancer (its own diagnostic)
+            if self._invalid(path, f"USD cannot compute its {n_all} instance transforms at time {base:g} "
+                                   f"(positions, orientations or scales do not match protoIndices)"):
+                return
 
         def all_transforms(time: float) -> np.ndarray:
             xf = inst.ComputeInstanceTransformsAtTime(Usd.TimeCode(time), Usd.TimeCode(base))
