@@ -5,7 +5,7 @@ never a traceback, a signal or a hang.
 Used by tests/test_fuzz.py (a few dozen mutants in-process, every CI run) and, as a script, for
 soaks in subprocesses (signals and hangs are seen there):
 
-    python tests/fuzz.py --many 2000 [--seed 1] [--timeout 120]
+    python tests/fuzz.py --many 2000 [--seed 1] [--timeout 120] [--start N]
 """
 
 from __future__ import annotations
@@ -107,12 +107,13 @@ def judge(code: int, stderr: str, out: str) -> str:
     return f"exit {code}"
 
 
-def soak(count: int, seed: int, timeout: float) -> collections.Counter:
-    """Each mutant in its own process (signals and hangs are outcomes too); prints the bad ones."""
+def soak(count: int, seed: int, timeout: float, start: int = 0) -> collections.Counter:
+    """Each mutant in its own process (signals and hangs are outcomes too); prints the bad ones.
+    Mutants before `start` are generated (the sequence is seeded) but not run: a soak resumes."""
     from tqdm import tqdm
     counts: collections.Counter = collections.Counter()
     with tempfile.TemporaryDirectory() as tmp:
-        for i, name, method, data, kind in tqdm(list(mutants(count, seed)), unit="mutant"):
+        for i, name, method, data, kind in tqdm(list(mutants(count, seed))[start:], unit="mutant"):
             scene = os.path.join(tmp, f"m{i}.usda")
             out = os.path.join(tmp, f"m{i}.exr")
             with open(scene, "wb") as f:
@@ -138,7 +139,8 @@ if __name__ == "__main__":
     ap.add_argument("--many", type=int, default=200, help="mutants to run")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--timeout", type=float, default=120.0, help="seconds before a mutant counts as a hang")
+    ap.add_argument("--start", type=int, default=0, help="skip the first mutants of the seeded sequence (resume a soak)")
     a = ap.parse_args()
-    result = soak(a.many, a.seed, a.timeout)
+    result = soak(a.many, a.seed, a.timeout, a.start)
     for verdict, n in result.most_common():
         print(f"{n:6d}  {verdict}")
