@@ -181,25 +181,11 @@ def map_visibility(sh: Shading, first_face: int, num_faces: int, b0: int, b1: in
     """Visibility of light-local point pl (normal nl) in the first face of a light sample's map
     that contains it, at instant b0 blended with b1 by frac (lit when no face contains it:
     nothing that casts a shadow was there)."""
-    return map_visibility_face(sh, first_face, num_faces, 0, b0, b1, frac, pl, nl)[0]
-
-
-@wp.func
-def map_visibility_face(sh: Shading, first_face: int, num_faces: int, hint: int, b0: int, b1: int, frac: float,
-                        pl: wp.vec3, nl: wp.vec3) -> wp.vec2:
-    """map_visibility, trying face `hint` (of 0..num_faces-1) first: (visibility, the face that
-    held the point, or -1). The faces of a cube do not overlap, so the order changes nothing but
-    the work: the same point seen at a neighbouring instant is in the same face."""
-    if hint > 0 and hint < num_faces:
-        v = face_visibility(sh, first_face + hint, b0, b1, frac, pl, nl)
-        if v >= 0.0:
-            return wp.vec2(v, float(hint))
     for f in range(num_faces):
-        if f != hint or hint == 0:
-            v = face_visibility(sh, first_face + f, b0, b1, frac, pl, nl)
-            if v >= 0.0:
-                return wp.vec2(v, float(f))
-    return wp.vec2(1.0, -1.0)
+        v = face_visibility(sh, first_face + f, b0, b1, frac, pl, nl)
+        if v >= 0.0:
+            return v
+    return 1.0
 
 
 @wp.func
@@ -270,10 +256,9 @@ def light_visibility_at(sh: Shading, j: int, u: float, p: wp.vec3, vel: wp.vec3,
         if together:
             total += map_visibility(sh, slot, num_faces, b0, b1, frac, pl0, nl0)
         else:
-            vf = map_visibility_face(sh, slot, num_faces, 0, b0, b0, 0.0, pl0, nl0)
-            v = vf[0]
-            if blend:   # the point at the next instant is most likely in the same face
-                v1 = map_visibility_face(sh, slot, num_faces, wp.max(int(vf[1]), 0), b1, b1, 0.0, pl1, nl1)[0]
+            v = map_visibility(sh, slot, num_faces, b0, b0, 0.0, pl0, nl0)
+            if blend:
+                v1 = map_visibility(sh, slot, num_faces, b1, b1, 0.0, pl1, nl1)
                 v = v + frac * (v1 - v)
             total += v
     return total / float(num_samples)
