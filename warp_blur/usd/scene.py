@@ -18,6 +18,8 @@ from ..core.errors import InvalidGeometryError
 from .lights import dome_radiance, find_lights, headlight_table, light_table
 from ..core.log import warn_once
 from .materials import MaterialTable
+from .curves import curves_unit_fields
+from .points import points_unit_fields
 from .stage import Shutter
 from .primvars import corner_primvar
 from .tessellate import tessellate_gprim, triangulate_corners
@@ -142,6 +144,10 @@ class Scene:
                 self._add_mesh(prim, t)
             elif any(prim.IsA(c) for c in _IMPLICIT):
                 self._add_gprim(prim, t)
+            elif prim.IsA(UsdGeom.Points):
+                self._add_points(prim, t)
+            elif prim.IsA(UsdGeom.BasisCurves):
+                self._add_curves(prim, t)
             elif prim.IsA(UsdGeom.Gprim) or prim.GetTypeName() not in _SILENT_TYPES and not _is_light(prim):
                 warn_once(f"unsupported:{prim.GetPath()}",
                           f"{prim.GetPath()}: prim type {prim.GetTypeName()} is not rendered")
@@ -306,6 +312,18 @@ class Scene:
             points_at=lambda time, p=pts: p, transforms_at=self._prim_transform_fn(prim), num_instances=1,
             corner_colors=colors, corner_uvs=uvs, material=material,
             flags=flags, blur_scale=blur, visibility_prims=[prim]))
+
+    def _add_points(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
+        """UsdGeom.Points as camera-facing discs of their widths (points.py)."""
+        fields = points_unit_fields(self, prim, t)
+        if fields:   # seen from either side
+            self.units.append(GeomUnit(**{**fields, "flags": fields["flags"] | FLAG_DOUBLE_SIDED}))
+
+    def _add_curves(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
+        """UsdGeom.BasisCurves as camera-facing ribbons of their widths (curves.py)."""
+        fields = curves_unit_fields(self, prim, t)
+        if fields:   # seen from either side
+            self.units.append(GeomUnit(**{**fields, "flags": fields["flags"] | FLAG_DOUBLE_SIDED}))
 
     def _add_instancer(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
         inst = UsdGeom.PointInstancer(prim)

@@ -1,0 +1,106 @@
+"""UsdGeom.Points as camera-facing discs, tessellated so that every method renders them as
+triangles: each point is an equal-area octagon of its `widths` (diameter, in the prim's local
+units) in the plane facing the camera at the frame time, centred on the point as USD places it at
+each shutter time (time samples, or `velocities` through ComputePointsAtTime). The disc's plane
+is fixed for the frame, so a point's blur is its centre's motion (a spark's streak)."""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+from pxr import Usd, UsdGeom
+
+from ..core.errors import InvalidGeometryError
+
+#: sides of the polygon standing for a disc, and the radius scale that gives it the disc's area
+DISC_SIDES = 8
+DISC_RADIUS_SCALE = float(np.sqrt(np.pi / (0.5 * DISC_SIDES * np.sin(2.0 * np.pi / DISC_SIDES))))
+DEFAULT_WIDTH = 1.0
+
+
+def disc_triangles(num_points: int) -> np.ndarray:
+    """(num_points * DISC_SIDES, 3) int32 fan triangles over vertices laid out per point as
+    [centre, rim_0 .. rim_{S-1}] (counter-clockwise seen from the camera)."""
+    per = DISC_SIDES + 1
+    base = np.arange(num_points, dtype=np.int64)[:, None] * per
+    k = np.arange(DISC_SIDES)
+    tris = np.stack([np.zeros(DISC_SIDES, np.int64), 1 + k, 1 + (k + 1) % DISC_SIDES], axis=1)
+    return (base[:, None, :] + tris[None]).reshape(-1, 3).astype(np.int32)
+
+
+def disc_vertices(centres: np.ndarray, radii: np.ndarray, right: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """(N * (DISC_SIDES + 1), 3) float64 disc vertices of centres (N, 3) with radii (N,), in the
+    plane spanned by the unit vectors right and up (3,)."""
+    angles = 2.0 * np.pi * np.arange(DISC_SIDES) / DISC_SIDES
+    ring = np.cos(angles)[:, None] * right[None] + np.sin(angles)[:, None] * up[None]     # (S, 3)
+    rim = centres[:, None, :] + (radii * DISC_RADIUS_SCALE)[:, None, None] * ring[None]          # (N, S, 3)
+    return np.concatenate([centres[:, None, :], rim], axis=1).reshape(-1, 3)
+
+
+def point_radii(points: UsdGeom.Points, time: Usd.TimeCode, count: int) -> np.ndarray | None:
+    """(count,) radii from `widths` (per point, or one for all; USD's default of 1 unauthored),
+    or None when the widths do not fit the points or are not finite positive numbers."""
+    widths = points.GetWidthsAttr().Get(time)
+    if widths is None or len(widths) == 0:
+        return np.full(count, DEFAULT_WIDTH / 2.0)
+    w = np.asarray(widths, np.float64).reshape(-1)
+    if len(w) == 1:
+        w = np.full(count, w[0])
+    if len(w) != count or not (np.isfinite(w).all() and (w >= 0).all()):
+        return None
+    return w / 2.0
+
+
+def facing_axes(prim: Usd.Prim, camera_prim: Usd.Prim, time: Usd.TimeCode) -> tuple[np.ndarray, np.ndarray]:
+    """(right, up) unit vectors in the prim's local space of the camera's image plane at `time`
+    (a disc in their span faces the camera)."""
+    cache = UsdGeom.XformCache(time)
+    cam_w = np.array(cache.GetLocalToWorldTransform(camera_prim), np.float64)
+    prim_w = np.array(cache.GetLocalToWorldTransform(prim), np.float64)
+    with np.errstate(all="ignore"):
+        cam_in_prim = cam_w @ np.linalg.inv(prim_w)          # row vectors: camera local -> prim local
+    axes = []
+    for row in (0, 1):
+        v = cam_in_prim[row, :3]
+        n = np.linalg.norm(v)
+        axes.append(v / n if np.isfinite(n) and n > 0 else np.eye(3)[row])
+    return axes[0], axes[1]
+
+
+def disc_points_fn(centres_at: Callable[[float], np.ndarray], radii: np.ndarray, right: np.ndarray,
+                   up: np.ndarray) -> Callable[[float], np.ndarray]:
+    """time -> disc vertices around the centres USD gives at that time."""
+    def points_at(time: float) -> np.ndarray:
+        return disc_vertices(centres_at(time), radii, right, up)
+    return points_at
+
+
+def points_unit_fields(scene, prim: Usd.Prim, t: Usd.TimeCode) -> dict | None:
+    """GeomUnit fields of a UsdGeom.Points prim as camera-facing discs (None: nothing to render, or
+    dropped as invalid); `scene` is the usd.scene.Scene being built (it makes them double-sided)."""
+    schema = UsdGeom.Points(prim)
+    path = str(prim.GetPath())
+    raw = schema.GetPointsAttr().Get(t)
+    n = 0 if raw is None else len(raw)
+    if n == 0:
+        return None
+    radii = point_radii(schema, t, n)
+    if radii is None and scene._invalid(path, "widths do not match the points or are not finite non-negative numbers"):
+        return None
+    centres_at = scene._points_fn(prim, n)
+    try:
+        centres_at(scene.frame)
+    except InvalidGeometryError:
+        if scene._invalid(path, "non-finite points"):
+            return None
+    right, up = facing_axes(prim, scene.camera.GetPrim(), t)
+    point_of_tri = np.repeat(np.arange(n), DISC_SIDES)
+    material, flags, blur = scene._common(prim, t)
+    colors, uvs = scene._surface_primvars(prim, t, material, np.repeat(point_of_tri[:, None], 3, axis=1),
+                                         point_of_tri, None)
+    return dict(
+        path=path, prim=prim, local_tris=disc_triangles(n), num_points=n * (DISC_SIDES + 1),
+        points_at=disc_points_fn(centres_at, radii, right, up), transforms_at=scene._prim_transform_fn(prim),
+        num_instances=1, corner_colors=colors, corner_uvs=uvs, material=material,
+        flags=flags, blur_scale=blur, visibility_prims=[prim])
