@@ -145,7 +145,7 @@ def test_messy_usd_references_payloads_instances_matrices(tmp_path, scene_path):
     m.CreateFaceVertexCountsAttr([4])
     m.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
     m.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.catmullClark)
-    UsdGeom.Points.Define(a, "/Asset/Dust").CreatePointsAttr([(0, 0, 0)])
+    UsdGeom.NurbsPatch.Define(a, "/Asset/Dust").CreatePointsAttr([(0, 0, 0)])   # not rendered
     a.GetRootLayer().Save()
 
     path = scene_path()
@@ -212,3 +212,28 @@ def test_an_invalid_point_instancer_is_named_or_skipped(scene_path, indices, pos
     _, _, scene = _scene(path, skip_invalid=True)
     assert [u.path for u in scene.units] == ["/World/Quad"]
     assert any("/World/Inst" in w for w in log.take_warnings())
+
+
+def test_geomsubset_material_bindings_colour_their_faces(scene_path):
+    """A mesh bound to green with a materialBind GeomSubset of its right face bound to red
+    (issue 19): each face renders in its own material, in every method."""
+    from authoring import add_camera, add_material, add_mesh, bind, new_stage
+    from pxr import UsdShade
+
+    import warp_blur as wb
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    green = add_material(stage, "/World/Looks/Green", emissive=(0.0, 1.0, 0.0))
+    red = add_material(stage, "/World/Looks/Red", emissive=(1.0, 0.0, 0.0))
+    mesh = add_mesh(stage, "/World/Two", [(-2, -1, 0), (0, -1, 0), (0, 1, 0), (-2, 1, 0), (2, -1, 0), (2, 1, 0)],
+                    [4, 4], [0, 1, 2, 3, 1, 4, 5, 2], material=green,
+                    translate_samples={0: (-0.05, 0, 0), 2: (0.05, 0, 0)})   # moving: every method's own path
+    binding = UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim())
+    subset = binding.CreateMaterialBindSubset("right", Vt.IntArray([1]), UsdGeom.Tokens.face)
+    bind(subset.GetPrim(), red)
+    stage.GetRootLayer().Save()
+    for method in ("analytic", "accumulation", "stochastic", "velocity"):
+        rgba = wb.render(path, frame=1, method=method, resolution=(64, 48), samples=2, shadows="off").rgba
+        left, right = rgba[24, 20, :3], rgba[24, 44, :3]
+        assert np.allclose(left, (0, 1, 0), atol=1e-4) and np.allclose(right, (1, 0, 0), atol=1e-4), method

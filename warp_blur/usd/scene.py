@@ -49,6 +49,7 @@ class GeomUnit:
     flags: int
     blur_scale: float = 1.0
     visibility_prims: list = field(default_factory=list)
+    tri_materials: np.ndarray | None = None   # (T,) int32 per local triangle (GeomSubset bindings), else `material`
 
     def visible_at(self, time: float) -> bool:
         t = Usd.TimeCode(time)
@@ -291,12 +292,35 @@ class Scene:
         material, flags, blur = self._common(prim, t)
         if smooth:
             flags |= FLAG_SMOOTH
+        tri_materials = self._subset_materials(prim, t, material, face_of_tri)
         colors, uvs = self._surface_primvars(prim, t, material, tris, face_of_tri, corners)
+        if tri_materials is not None:   # each subset's triangles read what their own material reads
+            uvs = uvs if uvs is not None else np.zeros((len(tris), 3, 2), np.float32)
+            for m in np.unique(tri_materials[tri_materials != material]):
+                c_m, uv_m = self._surface_primvars(prim, t, int(m), tris, face_of_tri, corners)
+                rows = tri_materials == m
+                colors[rows] = c_m[rows]
+                if uv_m is not None:
+                    uvs[rows] = uv_m[rows]
         self.units.append(GeomUnit(
             path=path, prim=prim, local_tris=tris, num_points=npts, points_at=points_at,
             transforms_at=self._prim_transform_fn(xform_prim), num_instances=1,
             corner_colors=colors, corner_uvs=uvs, material=material,
-            flags=flags, blur_scale=blur, visibility_prims=[prim]))
+            flags=flags, blur_scale=blur, visibility_prims=[prim], tri_materials=tri_materials))
+
+    def _subset_materials(self, prim: Usd.Prim, t: Usd.TimeCode, material: int,
+                          face_of_tri: np.ndarray) -> np.ndarray | None:
+        """(T,) material of each triangle from the mesh's GeomSubsets of family materialBind (the
+        mesh's own material elsewhere), or None when no subset binds another material."""
+        subsets = UsdShade.MaterialBindingAPI(prim).GetMaterialBindSubsets()
+        if not subsets:
+            return None
+        out = np.full(len(face_of_tri), material, np.int32)
+        for subset in subsets:
+            faces = np.asarray(subset.GetIndicesAttr().Get(t) or [], np.int64)
+            if len(faces):
+                out[np.isin(face_of_tri, faces)] = self.materials.index_for_prim(subset.GetPrim())
+        return out if (out != material).any() else None
 
     def _add_gprim(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
         out = tessellate_gprim(prim, t)
@@ -413,7 +437,8 @@ class Scene:
             colors.append(np.tile(u.corner_colors.reshape(-1, 3), (u.num_instances, 1)))
             unit_uvs = u.corner_uvs if u.corner_uvs is not None else np.zeros((len(u.local_tris), 3, 2), np.float32)
             uvs.append(np.tile(unit_uvs.reshape(-1, 2), (u.num_instances, 1)))
-            mats.append(np.full(n, u.material, np.int32))
+            mats.append(np.tile(u.tri_materials, u.num_instances).astype(np.int32) if u.tri_materials is not None
+                        else np.full(n, u.material, np.int32))
             flags.append(np.full(n, u.flags, np.int32))
             unit_of_tri.append(np.full(n, ui, np.int32))
             objects.append(np.repeat(np.arange(u.num_instances), len(u.local_tris)) + num_objects)
