@@ -17,7 +17,6 @@ from typing import Callable
 import numpy as np
 from pxr import Usd, UsdGeom
 
-from ..core.errors import InvalidGeometryError
 from .points import facing_axes
 
 SAMPLES_PER_SEGMENT = 8
@@ -188,12 +187,9 @@ def curves_unit_fields(scene, prim: Usd.Prim, t: Usd.TimeCode) -> dict | None:
     widths = sample_widths(schema, t, layout, n, len(counts))
     if widths is None and scene._invalid(path, "widths do not match the curves or are not finite non-negative numbers"):
         return None
-    control_at = scene._points_fn(prim, n)
-    try:
-        control_at(scene.frame)
-    except InvalidGeometryError:
-        if scene._invalid(path, "non-finite points"):
-            return None
+    control_at = scene._valid_points_fn(prim, n)
+    if control_at is None:
+        return None
     right, up = facing_axes(prim, scene.camera.GetPrim(), t)
     towards_camera = np.cross(right, up)
     tris = ribbon_triangles(layout)

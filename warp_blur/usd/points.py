@@ -11,7 +11,6 @@ from typing import Callable
 import numpy as np
 from pxr import Usd, UsdGeom
 
-from ..core.errors import InvalidGeometryError
 
 #: sides of the polygon standing for a disc, and the radius scale that gives it the disc's area
 DISC_SIDES = 8
@@ -88,12 +87,9 @@ def points_unit_fields(scene, prim: Usd.Prim, t: Usd.TimeCode) -> dict | None:
     radii = point_radii(schema, t, n)
     if radii is None and scene._invalid(path, "widths do not match the points or are not finite non-negative numbers"):
         return None
-    centres_at = scene._points_fn(prim, n)
-    try:
-        centres_at(scene.frame)
-    except InvalidGeometryError:
-        if scene._invalid(path, "non-finite points"):
-            return None
+    centres_at = scene._valid_points_fn(prim, n)
+    if centres_at is None:
+        return None
     right, up = facing_axes(prim, scene.camera.GetPrim(), t)
     point_of_tri = np.repeat(np.arange(n), DISC_SIDES)
     material, flags, blur = scene._common(prim, t)

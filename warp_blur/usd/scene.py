@@ -221,6 +221,17 @@ class Scene:
 
         return points_at
 
+    def _valid_points_fn(self, prim: Usd.Prim, npts: int) -> Callable[[float], np.ndarray] | None:
+        """_points_fn checked at the frame time: None when its points are not finite and the prim
+        is dropped (--skip-invalid); an InvalidGeometryError naming it otherwise."""
+        points_at = self._points_fn(prim, npts)
+        try:
+            points_at(self.frame)
+        except InvalidGeometryError:
+            if self._invalid(str(prim.GetPath()), "non-finite points"):
+                return None
+        return points_at
+
     def _skinning(self, prim: Usd.Prim):
         """(skinning query, skel query, skeleton prim) when UsdSkel skins this mesh, else None."""
         binding = UsdSkel.BindingAPI(prim)
