@@ -163,9 +163,9 @@ def test_messy_usd_references_payloads_instances_matrices(tmp_path, scene_path):
     stage.GetRootLayer().Save()
     log.reset()
     _, _, scene = _scene(path)
-    assert scene.num_triangles == 3 * 2
-    assert all(u.flags & 2 for u in scene.units)  # subdivision cage: smooth normals
-    xs = scene.snapshot(1.0).positions[:, 0].reshape(3, 4).min(axis=1)
+    assert scene.num_triangles == 3 * 32          # a catmullClark quad refined twice: 16 quads
+    assert all(u.flags & 2 for u in scene.units)  # subdivision surface: smooth normals
+    xs = scene.snapshot(1.0).positions[:, 0].reshape(3, -1).min(axis=1)   # its corners stay put
     np.testing.assert_allclose(xs, [0.0, 2.0, 4.0], atol=1e-9)
     warnings = log.take_warnings()
     dust = [w for w in warnings if "Dust" in w and "not rendered" in w]

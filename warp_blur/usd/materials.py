@@ -254,6 +254,20 @@ class MaterialTable:
                 self.names.append(key)
         return self._index[key]
 
+    def subset_materials(self, prim: Usd.Prim, t: Usd.TimeCode, material: int,
+                          face_of_tri: np.ndarray) -> np.ndarray | None:
+        """(T,) material of each triangle from the mesh's GeomSubsets of family materialBind (the
+        mesh's own material elsewhere), or None when no subset binds another material."""
+        subsets = UsdShade.MaterialBindingAPI(prim).GetMaterialBindSubsets()
+        if not subsets:
+            return None
+        out = np.full(len(face_of_tri), material, np.int32)
+        for subset in subsets:
+            faces = np.asarray(subset.GetIndicesAttr().Get(t) or [], np.int64)
+            if len(faces):
+                out[np.isin(face_of_tri, faces)] = self.index_for_prim(subset.GetPrim())
+        return out if (out != material).any() else None
+
     def array(self) -> np.ndarray:
         return np.stack(self.rows).astype(np.float32)
 

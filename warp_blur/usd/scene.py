@@ -20,6 +20,7 @@ from ..core.log import warn_once
 from .materials import MaterialTable
 from .curves import curves_unit_fields
 from .points import points_unit_fields
+from .subdivision import mesh_refinement, stage_level, refined_surface_primvars, refined_triangles
 from .stage import Shutter
 from .primvars import corner_primvar
 from .tessellate import tessellate_gprim, triangulate_corners
@@ -145,10 +146,10 @@ class Scene:
                 self._add_mesh(prim, t)
             elif any(prim.IsA(c) for c in _IMPLICIT):
                 self._add_gprim(prim, t)
-            elif prim.IsA(UsdGeom.Points):
-                self._add_points(prim, t)
-            elif prim.IsA(UsdGeom.BasisCurves):
-                self._add_curves(prim, t)
+            elif prim.IsA(UsdGeom.Points):     # camera-facing discs
+                self._add_fields(points_unit_fields(self, prim, t))
+            elif prim.IsA(UsdGeom.BasisCurves):  # camera-facing ribbons
+                self._add_fields(curves_unit_fields(self, prim, t))
             elif prim.IsA(UsdGeom.Gprim) or prim.GetTypeName() not in _SILENT_TYPES and not _is_light(prim):
                 warn_once(f"unsupported:{prim.GetPath()}",
                           f"{prim.GetPath()}: prim type {prim.GetTypeName()} is not rendered")
@@ -303,8 +304,21 @@ class Scene:
         material, flags, blur = self._common(prim, t)
         if smooth:
             flags |= FLAG_SMOOTH
-        tri_materials = self._subset_materials(prim, t, material, face_of_tri)
-        colors, uvs = self._surface_primvars(prim, t, material, tris, face_of_tri, corners)
+        if smooth and not skin and not hasattr(self, "_subdivision_level"):
+            self._subdivision_level = stage_level(self.stage, t)
+        refined = mesh_refinement(UsdGeom.Mesh(prim), t, npts, self._subdivision_level) if smooth and not skin else None
+        if refined is not None:    # Catmull-Clark levels instead of the cage (subdivision.py)
+            ref, counts, indices = refined
+            tris, face_of_tri, corner_weights = refined_triangles(ref)
+            points_at = (lambda time, f=points_at, s=ref.stencil: s @ f(time))
+            npts = ref.stencil.shape[0]
+        tri_materials = self.materials.subset_materials(prim, t, material, face_of_tri)
+        if refined is not None:
+            colors, uvs = refined_surface_primvars(prim, t, self.materials.reads[material], counts, indices,
+                                                   face_of_tri, corner_weights)
+            colors = colors if colors is not None else _grey_corners(len(tris))
+        else:
+            colors, uvs = self._surface_primvars(prim, t, material, tris, face_of_tri, corners)
         if tri_materials is not None:   # each subset's triangles read what their own material reads
             uvs = uvs if uvs is not None else np.zeros((len(tris), 3, 2), np.float32)
             for m in np.unique(tri_materials[tri_materials != material]):
@@ -318,20 +332,6 @@ class Scene:
             transforms_at=self._prim_transform_fn(xform_prim), num_instances=1,
             corner_colors=colors, corner_uvs=uvs, material=material,
             flags=flags, blur_scale=blur, visibility_prims=[prim], tri_materials=tri_materials))
-
-    def _subset_materials(self, prim: Usd.Prim, t: Usd.TimeCode, material: int,
-                          face_of_tri: np.ndarray) -> np.ndarray | None:
-        """(T,) material of each triangle from the mesh's GeomSubsets of family materialBind (the
-        mesh's own material elsewhere), or None when no subset binds another material."""
-        subsets = UsdShade.MaterialBindingAPI(prim).GetMaterialBindSubsets()
-        if not subsets:
-            return None
-        out = np.full(len(face_of_tri), material, np.int32)
-        for subset in subsets:
-            faces = np.asarray(subset.GetIndicesAttr().Get(t) or [], np.int64)
-            if len(faces):
-                out[np.isin(face_of_tri, faces)] = self.materials.index_for_prim(subset.GetPrim())
-        return out if (out != material).any() else None
 
     def _add_gprim(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
         out = tessellate_gprim(prim, t)
@@ -348,16 +348,9 @@ class Scene:
             corner_colors=colors, corner_uvs=uvs, material=material,
             flags=flags, blur_scale=blur, visibility_prims=[prim]))
 
-    def _add_points(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
-        """UsdGeom.Points as camera-facing discs of their widths (points.py)."""
-        fields = points_unit_fields(self, prim, t)
-        if fields:   # seen from either side
-            self.units.append(GeomUnit(**{**fields, "flags": fields["flags"] | FLAG_DOUBLE_SIDED}))
-
-    def _add_curves(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
-        """UsdGeom.BasisCurves as camera-facing ribbons of their widths (curves.py)."""
-        fields = curves_unit_fields(self, prim, t)
-        if fields:   # seen from either side
+    def _add_fields(self, fields: dict | None) -> None:
+        """A unit whose fields points.py or curves.py built: double-sided (seen from either side)."""
+        if fields:
             self.units.append(GeomUnit(**{**fields, "flags": fields["flags"] | FLAG_DOUBLE_SIDED}))
 
     def _add_instancer(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
