@@ -343,6 +343,7 @@ def _cmd_info(args) -> int:
     else:
         from .info import format_report
         print(format_report(report))
+    sys.stdout.flush()   # a closed pipe is met here, inside main's handling, not at exit
     return 0
 
 
@@ -399,6 +400,19 @@ def _main(argv: list[str], verbose: bool) -> int:
     except KeyboardInterrupt:
         print("warp-blur: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:   # `warp-blur info X --json | head -1`: the reader has gone, which is fine
+        _silence_stdout()
+        return 0
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so that the interpreter's last flush into a closed pipe is quiet."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):
+        pass
 
 
 if __name__ == "__main__":
