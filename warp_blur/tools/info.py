@@ -70,15 +70,11 @@ def screen_motion(proj, open_s, close_s) -> tuple[np.ndarray, np.ndarray, np.nda
         p = np.c_[s.positions, np.ones(len(s.positions))]
         return p @ np.linalg.inv(s.cam_from_world)
 
+    def px(points_world, cam_from_world):
+        return proj.project((points_world @ cam_from_world)[:, :3])
+
     with np.errstate(all="ignore"):
         w_open, w_close = world(open_s), world(close_s)
-        seen = {}
-
-        def px(points_world, cam_from_world):
-            key = (id(points_world), id(cam_from_world))
-            if key not in seen:
-                seen[key] = proj.project((points_world @ cam_from_world)[:, :3])
-            return seen[key]
         c_open, c_close = open_s.cam_from_world, close_s.cam_from_world
         base = px(w_open, c_open)
         total = np.linalg.norm(px(w_close, c_close) - base, axis=-1)

@@ -12,12 +12,11 @@ points at every shutter time, so a moving curve blurs like a mesh.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from pxr import Usd, UsdGeom
 
-from .points import facing_axes
+from .points import derived_points_fn, facing_axes
 
 SAMPLES_PER_SEGMENT = 8
 DEFAULT_WIDTH = 1.0
@@ -156,16 +155,6 @@ def sample_widths(curves: UsdGeom.BasisCurves, time: Usd.TimeCode, layout: Curve
     return None
 
 
-def ribbon_points_fn(control_at: Callable[[float], np.ndarray], layout: CurveLayout, counts: np.ndarray, wrap: str,
-                     widths: np.ndarray, towards_camera: np.ndarray, fallback_side: np.ndarray
-                     ) -> Callable[[float], np.ndarray]:
-    """time -> ribbon vertices of the curves whose control points USD gives at that time."""
-    def points_at(time: float) -> np.ndarray:
-        return ribbon_vertices(sample_positions(layout, control_at(time), counts, wrap), widths, layout,
-                               towards_camera, fallback_side)
-    return points_at
-
-
 def curves_unit_fields(scene, prim: Usd.Prim, t: Usd.TimeCode) -> dict | None:
     """GeomUnit fields of a UsdGeom.BasisCurves prim as camera-facing ribbons (None: nothing to
     render, or dropped as invalid); `scene` is the usd.scene.Scene being built (it makes them
@@ -190,7 +179,7 @@ def curves_unit_fields(scene, prim: Usd.Prim, t: Usd.TimeCode) -> dict | None:
     control_at = scene._valid_points_fn(prim, n)
     if control_at is None:
         return None
-    right, up = facing_axes(prim, scene.camera.GetPrim(), t)
+    right, up = facing_axes(prim, scene.camera.GetPrim(), scene._xf_cache(scene.frame))
     towards_camera = np.cross(right, up)
     tris = ribbon_triangles(layout)
     # each ribbon triangle takes the colour of its curve (uniform/constant) or of its first sample
@@ -202,6 +191,7 @@ def curves_unit_fields(scene, prim: Usd.Prim, t: Usd.TimeCode) -> dict | None:
                                          layout.curve_of_sample[first_vertex], None)
     return dict(
         path=path, prim=prim, local_tris=tris, num_points=2 * len(layout.curve_of_sample),
-        points_at=ribbon_points_fn(control_at, layout, counts, wrap, widths, towards_camera, right),
+        points_at=derived_points_fn(control_at, lambda c: ribbon_vertices(sample_positions(layout, c, counts, wrap),
+                                                                          widths, layout, towards_camera, right)),
         transforms_at=scene._prim_transform_fn(prim), num_instances=1, corner_colors=colors, corner_uvs=uvs,
         material=material, flags=flags, blur_scale=blur, visibility_prims=[prim])

@@ -51,10 +51,9 @@ def point_radii(points: UsdGeom.Points, time: Usd.TimeCode, count: int) -> np.nd
     return w / 2.0
 
 
-def facing_axes(prim: Usd.Prim, camera_prim: Usd.Prim, time: Usd.TimeCode) -> tuple[np.ndarray, np.ndarray]:
-    """(right, up) unit vectors in the prim's local space of the camera's image plane at `time`
-    (a disc in their span faces the camera)."""
-    cache = UsdGeom.XformCache(time)
+def facing_axes(prim: Usd.Prim, camera_prim: Usd.Prim, cache: UsdGeom.XformCache) -> tuple[np.ndarray, np.ndarray]:
+    """(right, up) unit vectors in the prim's local space of the camera's image plane at the
+    cache's time (a disc in their span faces the camera)."""
     cam_w = np.array(cache.GetLocalToWorldTransform(camera_prim), np.float64)
     prim_w = np.array(cache.GetLocalToWorldTransform(prim), np.float64)
     with np.errstate(all="ignore"):
@@ -67,11 +66,18 @@ def facing_axes(prim: Usd.Prim, camera_prim: Usd.Prim, time: Usd.TimeCode) -> tu
     return axes[0], axes[1]
 
 
-def disc_points_fn(centres_at: Callable[[float], np.ndarray], radii: np.ndarray, right: np.ndarray,
-                   up: np.ndarray) -> Callable[[float], np.ndarray]:
-    """time -> disc vertices around the centres USD gives at that time."""
+def derived_points_fn(source_at: Callable[[float], np.ndarray],
+                      derive: Callable[[np.ndarray], np.ndarray]) -> Callable[[float], np.ndarray]:
+    """time -> derive(source_at(time)), derived again only when the source gives another array
+    (a still prim's points function returns one cached array: its discs, ribbons or refined
+    surface are then made once, not at every shutter instant)."""
+    last: dict = {}
+
     def points_at(time: float) -> np.ndarray:
-        return disc_vertices(centres_at(time), radii, right, up)
+        source = source_at(time)
+        if last.get("source") is not source:
+            last["source"], last["points"] = source, derive(source)
+        return last["points"]
     return points_at
 
 
@@ -90,13 +96,13 @@ def points_unit_fields(scene, prim: Usd.Prim, t: Usd.TimeCode) -> dict | None:
     centres_at = scene._valid_points_fn(prim, n)
     if centres_at is None:
         return None
-    right, up = facing_axes(prim, scene.camera.GetPrim(), t)
+    right, up = facing_axes(prim, scene.camera.GetPrim(), scene._xf_cache(scene.frame))
     point_of_tri = np.repeat(np.arange(n), DISC_SIDES)
     material, flags, blur = scene._common(prim, t)
     colors, uvs = scene._surface_primvars(prim, t, material, np.repeat(point_of_tri[:, None], 3, axis=1),
                                          point_of_tri, None)
     return dict(
         path=path, prim=prim, local_tris=disc_triangles(n), num_points=n * (DISC_SIDES + 1),
-        points_at=disc_points_fn(centres_at, radii, right, up), transforms_at=scene._prim_transform_fn(prim),
+        points_at=derived_points_fn(centres_at, lambda c: disc_vertices(c, radii, right, up)), transforms_at=scene._prim_transform_fn(prim),
         num_instances=1, corner_colors=colors, corner_uvs=uvs, material=material,
         flags=flags, blur_scale=blur, visibility_prims=[prim])

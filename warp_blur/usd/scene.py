@@ -19,7 +19,7 @@ from .lights import dome_radiance, find_lights, headlight_table, light_table
 from ..core.log import warn_once
 from .materials import MaterialTable
 from .curves import curves_unit_fields
-from .points import points_unit_fields
+from .points import derived_points_fn, points_unit_fields
 from .subdivision import mesh_refinement, stage_level, refined_surface_primvars, refined_triangles
 from .stage import Shutter
 from .primvars import corner_primvar
@@ -310,7 +310,7 @@ class Scene:
         if refined is not None:    # Catmull-Clark levels instead of the cage (subdivision.py)
             ref, counts, indices = refined
             tris, face_of_tri, corner_weights = refined_triangles(ref)
-            points_at = (lambda time, f=points_at, s=ref.stencil: s @ f(time))
+            points_at = derived_points_fn(points_at, ref.stencil.__matmul__)
             npts = ref.stencil.shape[0]
         tri_materials = self.materials.subset_materials(prim, t, material, face_of_tri)
         if refined is not None:
