@@ -226,22 +226,42 @@ def test_memory_budget_renders_in_chunks_with_the_same_image(scene_path):
     np.testing.assert_array_equal(whole.rgba, chunked.rgba)
 
 
+@pytest.mark.parametrize("culling", [True, False])
 @pytest.mark.parametrize("bits", [128, 0])
-def test_samples_filled_again_with_more_room_give_the_same_image(scene_path, monkeypatch, bits):
+def test_samples_filled_again_with_more_room_give_the_same_image(scene_path, monkeypatch, bits, culling):
     """The fill pass stores a sample's intervals in FIRST_FILL_ROOM slots and fills a sample that
-    had more again with room for all: with room for 2, most samples that 8 crossing layers reach go
-    the second way, and the image must not change."""
+    had more again with room for all: with room for 2 (1 when occlusion culling keeps only the
+    front intervals), most samples that 8 crossing layers reach go the second way, and the image
+    must not change."""
     import warp_blur.methods.analytic as analytic
+    monkeypatch.setattr(analytic, "OCCLUSION_CULLING", culling)
     path = moving_layers_stage(scene_path(), 8, cross=True)
     kw = dict(frame=1, resolution=(32, 24), method="analytic", time_bits=bits, aovs=())
     roomy = wb.render(path, **kw)
-    monkeypatch.setattr(analytic, "FIRST_FILL_ROOM", 2)
+    monkeypatch.setattr(analytic, "FIRST_FILL_ROOM", 1 if culling else 2)
     tight = wb.render(path, **kw)
     assert roomy.stats["pixels_refilled"] == 0.0
     assert tight.stats["pixels_refilled"] > 0.5 * tight.stats["pixels_with_motion"] > 0.0
     assert tight.stats["intervals"] == roomy.stats["intervals"]
     assert tight.stats["intervals_per_pixel_max"] > 2
     np.testing.assert_array_equal(tight.rgba, roomy.rgba)
+
+
+@pytest.mark.parametrize("bits", [128, 0])
+def test_occlusion_culling_changes_no_pixel(scene_path, monkeypatch, bits):
+    """Leaving out the intervals that nearer ones hide at every time slot (occlusion.py) must give
+    the image of storing and resolving them all, on layers that cross in depth within the shutter,
+    while storing fewer (far fewer with time bits; exact mode's span slots cull less here, where
+    all 24 layers meet at one depth mid-shutter)."""
+    import warp_blur.methods.analytic as analytic
+    path = moving_layers_stage(scene_path(), 24, cross=True)
+    kw = dict(frame=1, resolution=(48, 36), method="analytic", time_bits=bits, aovs=())
+    culled = wb.render(path, **kw)
+    monkeypatch.setattr(analytic, "OCCLUSION_CULLING", False)
+    full = wb.render(path, **kw)
+    assert culled.stats["intervals"] < (0.5 if bits else 0.95) * full.stats["intervals"]
+    assert culled.stats["intervals_shaded"] == full.stats["intervals_shaded"]
+    np.testing.assert_array_equal(culled.rgba, full.rgba)
 
 
 def test_room_set_by_a_pilot_gives_the_same_image(scene_path, monkeypatch):
@@ -262,10 +282,12 @@ def test_room_set_by_a_pilot_gives_the_same_image(scene_path, monkeypatch):
     np.testing.assert_array_equal(piloted.rgba, single.rgba)
 
 
-def test_hidden_intervals_are_not_shaded(scene_path):
-    """Eight opaque layers stacked in depth over the same pixels: the resolve shades only the
-    intervals it finds visible, so most of the stored ones (the layers behind) cost no shading,
-    and the image still matches accumulation."""
+def test_hidden_intervals_are_not_shaded(scene_path, monkeypatch):
+    """Eight opaque layers stacked in depth over the same pixels, all stored (occlusion culling
+    off): the resolve shades only the intervals it finds visible, so most of the stored ones (the
+    layers behind) cost no shading, and the image still matches accumulation."""
+    import warp_blur.methods.analytic as analytic
+    monkeypatch.setattr(analytic, "OCCLUSION_CULLING", False)
     path = moving_layers_stage(scene_path(), 8)
     out, ref = _pair(path, res=(32, 24))
     assert out.stats["intervals_per_pixel_max"] >= 8

@@ -171,14 +171,15 @@ class FrameContext:
         return self.bin_groups(positions, entry_tri, entry_k0, entry_k1, [np.ones(len(entry_tri), bool)])[0]
 
     def bin_groups(self, positions: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray,
-                   groups: list[np.ndarray]) -> list[TileBins]:
+                   groups: list[np.ndarray], order_key: np.ndarray | None = None) -> list[TileBins]:
         """Separate screen-tile bins for each group (a boolean mask over the entries, shape (E,)),
-        so a kernel can walk e.g. a tile's static entries apart from its moving ones."""
+        so a kernel can walk e.g. a tile's static entries apart from its moving ones; each tile's
+        list in ascending order_key (E,) when given (see bin_entries)."""
         with self.timed("binning"):
             margin = 1.0
             boxes, keep = entry_pixel_bounds(self.proj, positions, self.scene.tri_vertices, entry_tri,
                                              entry_k0, entry_k1, margin)
-            out = [bin_entries(self.proj, boxes, keep & group, TILE_SIZE) for group in groups]
+            out = [bin_entries(self.proj, boxes, keep & group, TILE_SIZE, order_key) for group in groups]
         self.counters["bin_pairs"] = self.counters.get("bin_pairs", 0) + sum(b.num_pairs for b in out)
         return out
 

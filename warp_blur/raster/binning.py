@@ -89,8 +89,11 @@ def clipped_triangle_boxes(proj: Projection, tri: np.ndarray, margin: float) -> 
     return box
 
 
-def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size: int = TILE_SIZE) -> TileBins:
-    """Tile lists from entry pixel boxes (count, prefix sum, fill — on the host with NumPy)."""
+def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size: int = TILE_SIZE,
+                order_key: np.ndarray | None = None) -> TileBins:
+    """Tile lists from entry pixel boxes (count, prefix sum, fill — on the host with NumPy). Each
+    tile lists its entries in entry order, or by ascending order_key (E,) when given (e.g. the
+    nearest depth, so that kernels walking a list meet the front surfaces first)."""
     tiles_x = (proj.width + tile_size - 1) // tile_size
     tiles_y = (proj.height + tile_size - 1) // tile_size
     idx = np.nonzero(keep)[0]
@@ -108,7 +111,10 @@ def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size
     tx = tx0[rep] + local % w[rep]
     ty = ty0[rep] + local // w[rep]
     tile = ty * tiles_x + tx
-    order = np.argsort(tile, kind="stable")
+    if order_key is None:
+        order = np.argsort(tile, kind="stable")
+    else:
+        order = np.lexsort((np.asarray(order_key)[idx[rep]], tile))
     entries = idx[rep[order]].astype(np.int32)
     per_tile = np.bincount(tile, minlength=tiles_x * tiles_y)
     offsets = np.concatenate([[0], np.cumsum(per_tile)]).astype(np.int32)

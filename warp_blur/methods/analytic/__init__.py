@@ -4,7 +4,8 @@
 Pipeline per frame: motion segments per prim (segments.py) -> tile bins, static and moving entries
 apart -> classify pass (intervals.py; a sample no moving entry reaches is resolved right there,
 like a sharp render) -> fill pass over the other samples, which computes and stores their
-intervals (coverage and depth, no shading) in one go (FIRST_FILL_ROOM each; a sample that had
+intervals (coverage and depth, no shading) in one go, nearest entries first, leaving out what
+nearer intervals already hide at every time slot (occlusion.py) (FIRST_FILL_ROOM each; a sample that had
 more is filled again with room for all, so nothing is dropped; pixel chunks keep the arrays within
 the memory budget) -> resolve (resolve.py), which shades only the intervals it finds visible
 (radiance.py).
@@ -18,6 +19,7 @@ import warp as wp
 from ..frame import FrameContext
 from ...core.parallel import BandCounter, launch_pixels
 from .intervals import classify_samples, fill_intervals
+from .occlusion import CULL_ROW_BYTES_BUDGET, EXACT_CULL_SLOTS
 from .resolve import resolve_bitmask, resolve_exact
 from .segments import prepare_motion
 
@@ -30,9 +32,19 @@ FIRST_FILL_ROOM = 64
 PILOT_MIN = 4096
 PILOT_STRIDE = 16
 MAX_FILL_ROOM = 256
+# Occlusion culling in the fill pass (occlusion.py); tests switch it off to compare against
+# storing every interval.
+OCCLUSION_CULLING = True
 # Samples that no moving entry reaches are resolved in the classify pass, with the resolve's own
 # weights (tests switch this off to compare against resolving stored intervals).
 DIRECT_STATIC_PIXELS = True
+
+
+def cull_slots(bits: int) -> tuple[int, int]:
+    """(G, whole) culling slots for a resolve of `bits` time bits (0: exact); G = 0 when off."""
+    if not OCCLUSION_CULLING:
+        return 0, 0
+    return (bits, 0) if bits > 0 else (EXACT_CULL_SLOTS, 1)
 
 
 def pixel_chunks(offsets: np.ndarray, budget_intervals: int) -> list[tuple[int, int]]:
@@ -74,11 +86,14 @@ class _IntervalPass:
         spans = wp.array(spans_np, dtype=wp.vec2i, device=dev)
         counts = wp.zeros(len(pixels_np), dtype=int, device=dev)
         fallbacks = self.fallbacks if count_fallbacks else BandCounter(dev)
+        g, whole = cull_slots(ctx.settings.resolved_time_bits)
+        max_band = max(1, CULL_ROW_BYTES_BUDGET // (4 * (g + 1)))
         with ctx.timed("fill"):
             launch_pixels(fill_intervals, len(pixels_np),
-                          lambda first, _n: [self.view, self.geo, self.moving_bins, self.sub, pixels, first, spans,
-                                             self.static_hit, self.listed, counts, fallbacks.band(), *arrays],
-                          dev, ctx.settings.threads)
+                          lambda first, n: [self.view, self.geo, self.moving_bins, self.sub, pixels, first, spans,
+                                            self.static_hit, self.listed, g, whole, counts, fallbacks.band(), *arrays,
+                                            wp.empty((n, g + 1), dtype=float, device=dev)],
+                          dev, ctx.settings.threads, max_band=max_band)
         return counts.numpy(), arrays
 
     def resolve(self, pixels_np: np.ndarray, spans_np: np.ndarray, arrays) -> None:

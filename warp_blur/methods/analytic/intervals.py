@@ -24,6 +24,7 @@ from ...kernels.kernel_types import Bins, Geometry, Shading, View
 from ...kernels.raster import add_pixel, box_rejects, pixel_tile
 from ...kernels.rays import intersect_triangle, static_entry_hit
 from .coverage import DEGENERATE_TOL_F32, MAX_SPAN_PIECES, next_breakpoint, piece_covered, prism_edges
+from .occlusion import all_hidden, entry_hidden, interval_hidden, record_interval, reset_slots
 from .moving import Moving, depth_at, depth_range, entry_moving, eye_relative, in_range, sample_ray
 from .radiance import boundary_radiance, lerp_in_time, radiance_plan, sub_piece_time
 from .resolve import span_slots
@@ -34,11 +35,13 @@ CLIP_SAMPLES = 8
 
 @wp.func
 def emit_pieces(e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: float, s_b: float, limit: int, base: int,
-                iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int)) -> int:
+                iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int),
+                occ: wp.array2d(dtype=float), row: int, g: int, whole: int) -> int:
     """Store [s_a, s_b] of entry e (already known covered and within the clipping range) as
     intervals at base, base + 1, ... (those below `limit` only: limit 0 counts), split where view
-    depth is far from linear (its middle off the ends' mean by more than 1e-3 of the depth);
-    returns how many it has. Radiance is left to the resolve (radiance.py)."""
+    depth is far from linear (its middle off the ends' mean by more than 1e-3 of the depth),
+    leaving out those the sample's culling slots hide (occlusion.py); returns how many it kept.
+    Radiance is left to the resolve (radiance.py)."""
     z_a = depth_at(m, o, d, s_a)
     z_b = depth_at(m, o, d, s_b)
     z_m = depth_at(m, o, d, 0.5 * (s_a + s_b))
@@ -47,29 +50,36 @@ def emit_pieces(e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: float, s_b: floa
     n = int(1)
     if err > tol and tol > 0.0:
         n = wp.min(int(wp.ceil(wp.sqrt(err / tol))), MAX_PIECES)
-    if base < limit:
-        du = m.u1 - m.u0
-        z_prev = z_a
-        for i in range(wp.min(n, limit - base)):
-            s0 = s_a + (s_b - s_a) * float(i) / float(n)
-            s1 = s_a + (s_b - s_a) * float(i + 1) / float(n)
-            z1 = z_b
-            if i + 1 < n:
-                z1 = depth_at(m, o, d, s1)
-            iv_t[base + i] = wp.vec2(m.u0 + s0 * du, m.u0 + s1 * du)
-            iv_z[base + i] = wp.vec2(z_prev, z1)
-            iv_e[base + i] = e
-            z_prev = z1
-    return n
+    du = m.u1 - m.u0
+    z_prev = z_a
+    kept = int(0)
+    for i in range(n):
+        s0 = s_a + (s_b - s_a) * float(i) / float(n)
+        s1 = s_a + (s_b - s_a) * float(i + 1) / float(n)
+        z1 = z_b
+        if i + 1 < n:
+            z1 = depth_at(m, o, d, s1)
+        t = wp.vec2(m.u0 + s0 * du, m.u0 + s1 * du)
+        z = wp.vec2(z_prev, z1)
+        if not interval_hidden(occ, row, g, whole, t, z):
+            if base + kept < limit:
+                iv_t[base + kept] = t
+                iv_z[base + kept] = z
+                iv_e[base + kept] = e
+            record_interval(occ, row, g, whole, t, z)
+            kept += 1
+        z_prev = z1
+    return kept
 
 
 @wp.func
 def emit_clipped(view: View, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: float, s_b: float, may_clip: int,
                  limit: int, base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
-                 iv_e: wp.array(dtype=int), fallbacks: wp.array(dtype=int)) -> int:
+                 iv_e: wp.array(dtype=int), fallbacks: wp.array(dtype=int), occ: wp.array2d(dtype=float), row: int,
+                 g: int, whole: int) -> int:
     """Emit the part of a covered piece inside the clipping range (sampled when it may cross)."""
     if may_clip == 0:
-        return emit_pieces(e, m, o, d, s_a, s_b, limit, base, iv_t, iv_z, iv_e)
+        return emit_pieces(e, m, o, d, s_a, s_b, limit, base, iv_t, iv_z, iv_e, occ, row, g, whole)
     wp.atomic_add(fallbacks, 0, 1)
     count = int(0)
     prev_s = s_a
@@ -90,20 +100,21 @@ def emit_clipped(view: View, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: flo
             if prev_in:
                 # leaving the range: keep [start, lo] (the inside end of the bracket)
                 if lo > start:
-                    count += emit_pieces(e, m, o, d, start, lo, limit, base + count, iv_t, iv_z, iv_e)
+                    count += emit_pieces(e, m, o, d, start, lo, limit, base + count, iv_t, iv_z, iv_e, occ, row, g, whole)
             else:
                 start = hi
         prev_in = now_in
         prev_s = s
     if prev_in and s_b > start:
-        count += emit_pieces(e, m, o, d, start, s_b, limit, base + count, iv_t, iv_z, iv_e)
+        count += emit_pieces(e, m, o, d, start, s_b, limit, base + count, iv_t, iv_z, iv_e, occ, row, g, whole)
     return count
 
 
 @wp.func
 def entry_intervals(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, limit: int, base: int,
                     iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int),
-                    fallbacks: wp.array(dtype=int)) -> int:
+                    fallbacks: wp.array(dtype=int), occ: wp.array2d(dtype=float), row: int, g: int,
+                    whole: int) -> int:
     """The number of coverage intervals of entry e (its triangle m = entry_moving(geo, e)) at a
     pixel ray, stored at base, base + 1, ... where below `limit` (limit 0 only counts)."""
     vi = geo.tri_vertices[geo.entry_tri[e]]
@@ -112,7 +123,7 @@ def entry_intervals(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d:
         hit = intersect_triangle(o, d, m.a0, m.b0, m.c0, vi)
         if hit[0] == 0.0 or not in_range(view, hit[1]):
             return 0
-        return emit_pieces(e, m, o, d, 0.0, 1.0, limit, base, iv_t, iv_z, iv_e)
+        return emit_pieces(e, m, o, d, 0.0, 1.0, limit, base, iv_t, iv_z, iv_e, occ, row, g, whole)
     a0, b0, c0, da, db, dc = eye_relative(m, o)
     ca, cb, cc, ra, rb, rc, dga, dgb, dgc = prism_edges(d, a0, da, b0, db, c0, dc, vi, DEGENERATE_TOL_F32)
     # may the view depth leave [near, far]? (the hit is a convex combination of the vertices)
@@ -128,7 +139,7 @@ def entry_intervals(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d:
             sm = 0.5 * (s_prev + s_next)
             if piece_covered(ca, cb, cc, dga, dgb, dgc, a0, da, b0, db, c0, dc, vi, sm, 0) != 0:
                 count += emit_clipped(view, e, m, o, d, s_prev, s_next, may_clip, limit, base + count, iv_t, iv_z,
-                                      iv_e, fallbacks)
+                                      iv_e, fallbacks, occ, row, g, whole)
             s_prev = s_next
     return count
 
@@ -160,17 +171,23 @@ def may_show(view: View, m: Moving, z_static: float) -> bool:
 @wp.func
 def moving_intervals(view: View, geo: Geometry, moving_bins: Bins, tile: int, start: int, sx: float, sy: float,
                      o: wp.vec3, d: wp.vec3, z_static: float, limit: int, base: int, iv_t: wp.array(dtype=wp.vec2),
-                     iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int), fallbacks: wp.array(dtype=int)) -> int:
+                     iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int), fallbacks: wp.array(dtype=int),
+                     occ: wp.array2d(dtype=float), row: int, g: int, whole: int) -> int:
     """Count, and store below `limit`, the intervals of the moving entries at a sample, from the
     tile's list position `start` on (first_reaching found none before it), skipping those
-    entirely behind the nearest static surface (depth z_static)."""
+    entirely behind the nearest static surface (depth z_static) or the culling slots. The list
+    runs nearest first, so the walk ends at the first entry behind every slot."""
     n = int(0)
     for i in range(start, moving_bins.tile_offsets[tile + 1]):
         e = moving_bins.tile_entries[i]
         if not box_rejects(moving_bins, e, sx, sy):
             m = entry_moving(geo, e)
-            if may_show(view, m, z_static):
-                n += entry_intervals(view, geo, e, m, o, d, limit, base + n, iv_t, iv_z, iv_e, fallbacks)
+            z_near = depth_range(m)[0]
+            if all_hidden(occ, row, g, z_near):
+                break
+            if may_show(view, m, z_static) and not entry_hidden(occ, row, g, whole, m.u0, m.u1, z_near):
+                n += entry_intervals(view, geo, e, m, o, d, limit, base + n, iv_t, iv_z, iv_e, fallbacks, occ, row,
+                                     g, whole)
     return n
 
 
@@ -276,14 +293,18 @@ def classify_samples(view: View, geo: Geometry, sh: Shading, static_bins: Bins, 
 @wp.kernel(enable_backward=False)
 def fill_intervals(view: View, geo: Geometry, moving_bins: Bins, sub: wp.vec2, pixels: wp.array(dtype=int), first: int,
                    spans: wp.array(dtype=wp.vec2i), static_hit: wp.array(dtype=int), listed: wp.array(dtype=int),
+                   cull_slots: int, cull_whole: int,
                    # outputs
                    counts: wp.array(dtype=int), fallbacks: wp.array(dtype=int), iv_t: wp.array(dtype=wp.vec2),
-                   iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int)):
+                   iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int), occ: wp.array2d(dtype=float)):
     """Listed sample k = first + tid (pixel pixels[k]): counts[k] = its number of intervals (the
     moving entries' first, then its nearest static entry's), stored from spans[k][0] on in the
-    chunk's arrays as far as they fit below spans[k][1]. One pass computes and stores; a sample
-    whose count exceeds its span is filled again with room for all (see _IntervalPass)."""
-    k = first + wp.tid()
+    chunk's arrays as far as they fit below spans[k][1], leaving out those hidden at every
+    culling slot (occlusion.py: cull_slots G, cull_whole for span slots; row tid of occ, shape
+    (threads, G + 1), is the sample's scratch). One pass computes and stores; a sample whose count
+    exceeds its span is filled again with room for all (see _IntervalPass)."""
+    row = wp.tid()
+    k = first + row
     pix = pixels[k]
     base = spans[k][0]
     limit = spans[k][1]
@@ -296,9 +317,10 @@ def fill_intervals(view: View, geo: Geometry, moving_bins: Bins, sub: wp.vec2, p
     z_static = float(wp.inf)
     if e_static >= 0:
         z_static = static_entry_hit(geo, e_static, o, d)[1]
+    reset_slots(occ, row, cull_slots, z_static)
     n = moving_intervals(view, geo, moving_bins, pixel_tile(view, px, py), listed[pix] - 1, sx, sy, o, d, z_static,
-                         limit, base, iv_t, iv_z, iv_e, fallbacks)
+                         limit, base, iv_t, iv_z, iv_e, fallbacks, occ, row, cull_slots, cull_whole)
     if e_static >= 0:
         n += entry_intervals(view, geo, e_static, entry_moving(geo, e_static), o, d, limit, base + n, iv_t, iv_z,
-                             iv_e, fallbacks)
+                             iv_e, fallbacks, occ, row, cull_slots, cull_whole)
     counts[k] = n
