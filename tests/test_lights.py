@@ -31,3 +31,26 @@ def test_distant_light_illuminance_follows_usdlux(scene_path, angle, normalize, 
     r = wb.render(path, frame=1, samples=1, resolution=(16, 12))
     expected = 50000.0 * expected_factor / math.pi
     assert r.rgba[6, 8, 0] == pytest.approx(expected, rel=1e-4)
+
+
+@pytest.mark.parametrize("method", ["accumulation", "stochastic", "analytic", "velocity"])
+def test_single_sided_back_face_is_lit_like_a_double_sided_one(scene_path, method):
+    """A quad whose front faces away from the camera, lit from the camera's side: its back face is
+    shaded with the flipped normal whether or not it is double-sided (issue 19: it rendered black
+    when single-sided), at albedo / π × E."""
+    from pxr import UsdGeom
+    pictures = []
+    for double in (True, False):
+        path = scene_path()
+        stage = new_stage(path)
+        add_camera(stage, shutter=(0, 0))
+        light = UsdLux.DistantLight.Define(stage, "/World/Sun")   # shines along -Z, onto the camera's side
+        light.CreateIntensityAttr(2.0)
+        light.CreateNormalizeAttr(True)
+        white = add_material(stage, "/World/Looks/White", diffuse=(0.5, 0.5, 0.5))
+        quad = add_quad(stage, "/World/Quad", 3.0, 3.0, material=white, double_sided=double)
+        UsdGeom.Mesh(quad).GetOrientationAttr().Set(UsdGeom.Tokens.leftHanded)   # front face points to -Z
+        stage.GetRootLayer().Save()
+        pictures.append(wb.render(path, frame=1, method=method, resolution=(16, 12), aovs=()).rgba)
+    assert pictures[1][6, 8, 0] == pytest.approx(0.5 / math.pi * 2.0, rel=1e-3)
+    assert abs(pictures[1] - pictures[0]).max() < 1e-5

@@ -5,8 +5,10 @@ f = diffuse/π + D·G·F / (4 cosθ_l cosθ_v) with GGX D (α = roughness²), Sc
 (k = α/2) and Schlick F from F0. A shadowing light's term is multiplied by its shadow-map
 visibility (shadow_lookup.py: mean over the light's samples, so area lights cast soft shadows);
 the dome's ambient term is not shadowed. A material with black diffuse and black F0 returns its
-emissive colour exactly, whatever the lights and the dome. Double-sided back faces are shaded
-with the flipped normal; single-sided back faces keep the front normal. Opacity is ignored
+emissive colour exactly, whatever the lights and the dome. Back faces are shaded with the
+flipped normal, double- and single-sided alike (as Cycles, Karma and RenderMan shade a mesh seen
+from behind; SPEC §4 changed by issue 19: a single-sided back face used to keep its front normal
+and render dark). Opacity is ignored
 (rendered opaque, with a warning at load time).
 """
 
@@ -188,7 +190,7 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
         ns = (1.0 - wb - wc) * entry_normal(geo, e, vi[0], alpha) + wb * entry_normal(geo, e, vi[1], alpha) + wc * entry_normal(geo, e, vi[2], alpha)
         if wp.length(ns) > 0.0:
             n = wp.normalize(ns)
-    if wp.dot(ng, v) < 0.0 and (flags & 1) != 0:
+    if wp.dot(ng, v) < 0.0:
         n = -n
     out = emissive + wp.cw_mul(diffuse + f0, sh.dome)
     vel = entry_point_velocity(geo, e, vi, hit)
