@@ -21,9 +21,13 @@ def pixel_tile(view: View, px: int, py: int) -> int:
 
 @wp.func
 def box_rejects(bins: Bins, e: int, x: float, y: float) -> bool:
-    """True when the sample (x, y pixels) lies outside entry e's swept pixel box."""
+    """True when the sample (x, y pixels) lies outside entry e's swept pixel box or band."""
     b = bins.entry_boxes[e]
-    return x < b[0] or x > b[2] or y < b[1] or y > b[3]
+    if x < b[0] or x > b[2] or y < b[1] or y > b[3]:
+        return True
+    n = bins.entry_bands[e]
+    w = n[0] * x + n[1] * y
+    return w < n[2] or w > n[3]
 
 
 @wp.func

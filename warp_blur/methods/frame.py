@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from ..raster.binning import TILE_SIZE, TileBins, bin_entries, entry_pixel_bounds
+from ..raster.binning import TILE_SIZE, TileBins, bin_entries, entry_pixel_bounds, swept_bands
 from ..core.camera import Projection
 from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_shading, make_view
 from ..kernels.kernel_types import Geometry
@@ -180,6 +180,9 @@ class FrameContext:
             boxes, keep = entry_pixel_bounds(self.proj, positions, self.scene.tri_vertices, entry_tri,
                                              entry_k0, entry_k1, margin)
             out = [bin_entries(self.proj, boxes, keep & group, TILE_SIZE, order_key) for group in groups]
+            bands = swept_bands(self.proj, positions, self.scene.tri_vertices, entry_tri, entry_k0, entry_k1, margin)
+            for b in out:
+                b.entry_bands = bands
         self.counters["bin_pairs"] = self.counters.get("bin_pairs", 0) + sum(b.num_pairs for b in out)
         return out
 

@@ -25,6 +25,7 @@ class TileBins:
     tiles_x: int
     tiles_y: int
     entry_boxes: np.ndarray | None = None   # (E, 4) float32 swept pixel boxes
+    entry_bands: np.ndarray | None = None   # (E, 4) float32 swept bands (nx, ny, lo, hi), see swept_bands
 
     @property
     def num_pairs(self) -> int:
@@ -58,6 +59,38 @@ def entry_pixel_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np
     box[~finite] = (-margin, -margin, proj.width + margin, proj.height + margin)
     keep &= (box[:, 2] >= 0) & (box[:, 0] <= proj.width) & (box[:, 3] >= 0) & (box[:, 1] <= proj.height)
     return box, keep
+
+
+def swept_bands(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarray, entry_tri: np.ndarray,
+                entry_k0: np.ndarray, entry_k1: np.ndarray, margin: float = 1.0) -> np.ndarray:
+    """(E, 4) float32 bands (nx, ny, lo, hi): every pixel an entry covers over its span has
+    lo <= nx·x + ny·y <= hi, with (nx, ny) the unit normal of its screen motion. A moving triangle
+    stays inside the convex hull of its six projected vertices (in front of the eye), so the band
+    is exact as a bound; across its motion it is the triangle's width where its box is the whole
+    streak's, which is what rejects most of a long diagonal streak's box. Entries that barely move
+    (< 2 px), cross the near plane or have no finite projection get (0, 0, -1, 1): no reject."""
+    out = np.zeros((len(entry_tri), 4), np.float32)
+    out[:, 2], out[:, 3] = -1.0, 1.0
+    if len(entry_tri) == 0:
+        return out
+    vi_t = tri_vertices[entry_tri].T                                    # (3, E)
+    pts = np.concatenate([positions[entry_k0[None, :], vi_t], positions[entry_k1[None, :], vi_t]], axis=0)
+    depth = -pts[..., 2].astype(np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = proj.project(pts)                                           # (6, E, 2)
+    motion = r[3:].mean(axis=0) - r[:3].mean(axis=0)                    # (E, 2)
+    length = np.hypot(motion[:, 0], motion[:, 1])
+    ok = np.isfinite(r).all(axis=(0, 2)) & (length > 2.0)
+    if not proj.orthographic:
+        ok &= (depth >= proj.near).all(axis=0)
+    if not ok.any():
+        return out
+    n = np.stack([-motion[ok, 1], motion[ok, 0]], axis=1) / length[ok, None]
+    along = r[:, ok, 0] * n[None, :, 0] + r[:, ok, 1] * n[None, :, 1]   # (6, E_ok)
+    out[ok, 0], out[ok, 1] = n[:, 0], n[:, 1]
+    out[ok, 2] = along.min(axis=0) - margin
+    out[ok, 3] = along.max(axis=0) + margin
+    return out
 
 
 def clipped_triangle_boxes(proj: Projection, tri: np.ndarray, margin: float) -> np.ndarray:

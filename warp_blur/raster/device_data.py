@@ -204,4 +204,8 @@ def make_bins(bins: TileBins, device: str) -> Bins:
     b.tile_entries = device_array(bins.tile_entries, int, device)
     boxes = bins.entry_boxes if bins.entry_boxes is not None else np.zeros((0, 4), np.float32)
     b.entry_boxes = device_array(boxes.astype(np.float32), wp.vec4, device)
+    bands = bins.entry_bands
+    if bands is None:   # no band reject: (0, 0, -1, 1) passes every pixel
+        bands = np.tile(np.array([0.0, 0.0, -1.0, 1.0], np.float32), (len(boxes), 1))
+    b.entry_bands = device_array(bands.astype(np.float32), wp.vec4, device)
     return b

@@ -41,10 +41,13 @@ DIRECT_STATIC_PIXELS = True
 
 
 def cull_slots(bits: int) -> tuple[int, int]:
-    """(G, whole) culling slots for a resolve of `bits` time bits (0: exact); G = 0 when off."""
+    """(G, whole) culling slots for a resolve of `bits` time bits (0: exact); G = 0 when off. Up
+    to EXACT_CULL_SLOTS bits the slots are the resolve's own instants; above, and for exact
+    spans, EXACT_CULL_SLOTS span slots (culling's cost grows with its slots, and more of them
+    would buy little)."""
     if not OCCLUSION_CULLING:
         return 0, 0
-    return (bits, 0) if bits > 0 else (EXACT_CULL_SLOTS, 1)
+    return (bits, 0) if 0 < bits <= EXACT_CULL_SLOTS else (EXACT_CULL_SLOTS, 1)
 
 
 def pixel_chunks(offsets: np.ndarray, budget_intervals: int) -> list[tuple[int, int]]:
