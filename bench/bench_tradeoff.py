@@ -43,7 +43,7 @@ def sweeps(quick: bool) -> dict[str, list[dict]]:
     out = {
         "accumulation": [{"samples": n} for n in acc],
         "stochastic": [{"samples": n} for n in sto],
-        "analytic": [{"time_bits": b, "samples": s} for b, s in ana],
+        "analytic": ana,
     }
     if "velocity" in wb.METHODS:
         try:

@@ -344,3 +344,27 @@ def test_static_pixels_resolved_in_count_pass_match_stored_resolve(scene_path, m
     assert 0.0 < direct.stats["pixels_with_motion"] < 0.6
     assert stored.stats["pixels_with_motion"] == 1.0
     assert max_abs(direct.rgba, stored.rgba) < 1e-4
+
+
+def test_quality_presets_trade_motion_segments_for_speed(scene_path):
+    """analytic's draft linearises motion more coarsely than final (fewer prisms: the knob buys
+    time, issue 18), its achieved screen error stays within the preset's bound, and an explicit
+    segment_error_px wins over the preset."""
+    from authoring import add_camera, add_material, add_quad, new_stage
+    from warp_blur.core.settings import QUALITY_PRESETS, RenderSettings
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    mat = add_material(stage, "/World/Looks/E", emissive=(0.9, 0.6, 0.2))
+    add_quad(stage, "/World/Blade", 3.0, 0.4, material=mat, rotate_axis="Z", rotate_samples={0.5: 0.0, 1.5: 180.0})
+    stage.GetRootLayer().Save()
+    kw = dict(frame=1, resolution=(64, 48), method="analytic", aovs=())
+    draft = wb.render(path, quality="draft", **kw)
+    final = wb.render(path, quality="final", **kw)
+    assert draft.stats["entries"] < final.stats["entries"]
+    assert draft.stats["motion_segment_error_px"] <= QUALITY_PRESETS["analytic"]["draft"]["segment_error_px"]
+    assert final.stats["motion_segment_error_px"] <= 0.25
+    explicit = RenderSettings(method="analytic", quality="draft", segment_error_px=0.25, segment_time_error=0.001)
+    assert explicit.resolved_segment_error_px == 0.25 and explicit.resolved_segment_time_error == 0.001
+    with pytest.raises(wb.SettingsError):
+        RenderSettings(method="analytic", segment_error_px=0.0)

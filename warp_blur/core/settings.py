@@ -14,15 +14,19 @@ TIME_BITS_ALLOWED = (0, 32, 64, 128, 256, 512, 1024)
 #: SPEC §6 defaults when no --quality is given.
 DEFAULT_SAMPLES = {"accumulation": 64, "stochastic": 64, "analytic": 16, "velocity": 8}
 DEFAULT_TIME_BITS = 128
+DEFAULT_SEGMENT_ERROR_PX = 0.25
+DEFAULT_SEGMENT_TIME_ERROR = 0.001
 
 #: Quality presets: method -> preset -> {setting: value}. An explicit setting always wins.
-QUALITY_PRESETS: dict[str, dict[str, dict[str, int]]] = {
+QUALITY_PRESETS: dict[str, dict[str, dict[str, float]]] = {
     # chosen from the measured Pareto front (bench/bench_tradeoff.py, README "Quality presets")
     "accumulation": {"draft": {"samples": 16}, "preview": {"samples": 64}, "final": {"samples": 256}},
     "stochastic": {"draft": {"samples": 16}, "preview": {"samples": 64}, "final": {"samples": 256}},
     "analytic": {
-        "draft": {"time_bits": 32, "samples": 2},
-        "preview": {"time_bits": 128, "samples": 4},
+        # the draft also linearises motion more coarsely (fewer motion segments, so fewer prisms):
+        # its coverage is what costs, not its resolve (bench_tradeoff, issue 18)
+        "draft": {"time_bits": 32, "samples": 2, "segment_error_px": 1.0, "segment_time_error": 0.004},
+        "preview": {"time_bits": 128, "samples": 4, "segment_error_px": 0.5, "segment_time_error": 0.002},
         "final": {"time_bits": 512, "samples": 16},
     },
     "velocity": {"draft": {"samples": 4}, "preview": {"samples": 8}, "final": {"samples": 16}},
@@ -53,9 +57,11 @@ class RenderSettings:
         threads: worker threads for tiles (None = every core).
         aovs: AOV names to compute ("Z", "motion", "coverage").
         skip_invalid: drop prims with invalid geometry (with a warning) instead of failing.
-        segment_error_px: max screen error of linearised motion segments, pixels.
+        segment_error_px: max screen error of linearised motion segments, pixels (analytic and
+            stochastic); None = preset or 0.25.
         segment_time_error: max linearisation error relative to a vertex's screen path (≈ the
-            error in the time an edge covers a pixel, as a share of the shutter).
+            error in the time an edge covers a pixel, as a share of the shutter); None = preset
+            or 0.001.
         max_segments: upper bound of motion segments per prim (power of two).
         memory_budget_mb: analytic interval arrays above this render in pixel bands; accumulation
             records still pixels' hits only within it (else renders them at every instant).
@@ -94,8 +100,8 @@ class RenderSettings:
     threads: int | None = None
     aovs: tuple[str, ...] = ("Z", "motion")
     skip_invalid: bool = False
-    segment_error_px: float = 0.25
-    segment_time_error: float = 0.001
+    segment_error_px: float | None = None
+    segment_time_error: float | None = None
     max_segments: int = 128
     memory_budget_mb: float = 2048.0
     frame_memory_limit_mb: float | None = None
@@ -133,6 +139,10 @@ class RenderSettings:
             raise SettingsError(f"spatial samples must be between 1 and 16, got {self.spatial_samples}")
         if self.frame_memory_limit_mb is not None and not self.frame_memory_limit_mb > 0:
             raise SettingsError(f"memory limit must be a positive number of MiB, got {self.frame_memory_limit_mb}")
+        for name in ("segment_error_px", "segment_time_error"):
+            value = getattr(self, name)
+            if value is not None and not value > 0:
+                raise SettingsError(f"{name} must be a positive number, got {value}")
         if self.threads is not None and self.threads < 1:
             raise SettingsError(f"threads must be at least 1, got {self.threads}")
         if self.max_segments < 1 or self.max_segments & (self.max_segments - 1):
@@ -155,7 +165,7 @@ class RenderSettings:
         if bad:
             raise SettingsError(f"unknown AOV '{bad[0]}' (choose from Z, motion, coverage)")
 
-    def _preset(self, name: str) -> int | None:
+    def _preset(self, name: str):
         if self.quality is None:
             return None
         return QUALITY_PRESETS[self.method][self.quality].get(name)
@@ -175,6 +185,22 @@ class RenderSettings:
             return self.time_bits
         preset = self._preset("time_bits")
         return preset if preset is not None else DEFAULT_TIME_BITS
+
+    @property
+    def resolved_segment_error_px(self) -> float:
+        """Motion-segment screen error after explicit value > quality preset > 0.25 px."""
+        if self.segment_error_px is not None:
+            return self.segment_error_px
+        preset = self._preset("segment_error_px")
+        return preset if preset is not None else DEFAULT_SEGMENT_ERROR_PX
+
+    @property
+    def resolved_segment_time_error(self) -> float:
+        """Motion-segment error relative to the screen path after explicit > preset > 0.001."""
+        if self.segment_time_error is not None:
+            return self.segment_time_error
+        preset = self._preset("segment_time_error")
+        return preset if preset is not None else DEFAULT_SEGMENT_TIME_ERROR
 
     @property
     def resolved_shadow_map_size(self) -> int:

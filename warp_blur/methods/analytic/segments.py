@@ -270,8 +270,8 @@ def prepare_motion(ctx):
     from ...raster.device_data import make_bins, make_geometry, make_shading
     s = ctx.settings
     with ctx.timed("segments"):
-        plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.segment_error_px,
-                           s.segment_time_error, ctx.probe_snapshots)
+        plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.resolved_segment_error_px,
+                           s.resolved_segment_time_error, ctx.probe_snapshots)
     geo = make_geometry(ctx.tables, plan.positions, plan.normals, plan.entry_tri, plan.entry_k0, plan.entry_k1)
     static = plan.entry_k0 == plan.entry_k1
     near = entry_near_depth(plan.positions, ctx.scene.tri_vertices, plan.entry_tri, plan.entry_k0, plan.entry_k1)
