@@ -39,7 +39,9 @@ TARGETS = (4e-3, 2e-3, 1e-3)   # issue 18: times to reach these RMSEs
 def sweeps(quick: bool) -> dict[str, list[dict]]:
     acc = [4, 16, 64, 256] if quick else [4, 16, 64, 256, 1024]
     sto = [4, 16, 64] if quick else [4, 16, 64, 256]
-    ana = [(32, 2), (128, 4), (128, 16), (0, 16)] if quick else [(32, 2), (64, 4), (128, 4), (128, 16), (512, 16), (0, 16)]
+    # analytic: its presets (draft/preview also loosen motion segments), the default and exact mode
+    ana = [{"quality": "draft"}, {"quality": "preview"}, {"time_bits": 128, "samples": 16}, {"quality": "final"},
+           {"time_bits": 0, "samples": 16}]
     out = {
         "accumulation": [{"samples": n} for n in acc],
         "stochastic": [{"samples": n} for n in sto],
