@@ -141,7 +141,8 @@ def main() -> None:
         for method, knobs in ours.items():
             for knob in knobs:
                 bar.set_postfix_str(f"{name} {method} {knob}")
-                renderer = wb.Renderer(variant, resolution=res, settings=wb.RenderSettings(method=method, aovs=(), **knob))
+                settings = wb.RenderSettings(method=method, aovs=(), **knob)
+                renderer = wb.Renderer(variant, resolution=res, settings=settings)
                 seconds, result = timed_median(lambda: renderer.render(frame), args.repeats)
                 scene_rows.append({"method": method, "knob": json.dumps(knob), "seconds": seconds,
                                    "rmse": rmse(result.rgba, ref)})
@@ -177,8 +178,8 @@ def main() -> None:
             summary.append(entry)
     bar.close()
     with open(os.path.join(OUT, "peers.json"), "w") as f:
-        json.dump({"runs": rows, "time_to_error": summary, "quick": args.quick, "python": python}, f, indent=2,
-                  default=str)
+        json.dump({"runs": rows, "time_to_error": summary, "quick": args.quick, "python": python}, f,
+                  indent=2, default=str)
     print(table(rows, ["scene", "method", "knob", "seconds", "rmse", "note"]))
     print()
     cols = ["scene", "target_rmse"] + [f"t_{m}" for m in ("analytic", "stochastic", "accumulation", "cycles")]

@@ -54,3 +54,25 @@ def test_single_sided_back_face_is_lit_like_a_double_sided_one(scene_path, metho
         pictures.append(wb.render(path, frame=1, method=method, resolution=(16, 12), aovs=()).rgba)
     assert pictures[1][6, 8, 0] == pytest.approx(0.5 / math.pi * 2.0, rel=1e-3)
     assert abs(pictures[1] - pictures[0]).max() < 1e-5
+
+
+@pytest.mark.parametrize("method", ["accumulation", "stochastic", "analytic", "velocity"])
+def test_authored_normals_shade_in_every_method(scene_path, method):
+    """A flat quad facing the camera and a light behind the camera, its authored normals leaning
+    60° away: Lambert radiance is albedo / π × E × cos 60° (flat facets would give cos 0°)."""
+    from pxr import Gf, Sdf, UsdGeom, Vt
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage, shutter=(0, 0))
+    light = UsdLux.DistantLight.Define(stage, "/World/Sun")   # shines along -Z
+    light.CreateIntensityAttr(2.0)
+    light.CreateNormalizeAttr(True)
+    UsdLux.ShadowAPI.Apply(light.GetPrim()).CreateShadowEnableAttr(False)
+    white = add_material(stage, "/World/Looks/White", diffuse=(0.5, 0.5, 0.5))
+    quad = add_quad(stage, "/World/Quad", 3.0, 3.0, material=white)
+    lean = Gf.Vec3f(math.sin(math.radians(60)), 0.0, math.cos(math.radians(60)))
+    pv = UsdGeom.PrimvarsAPI(quad).CreatePrimvar("normals", Sdf.ValueTypeNames.Normal3fArray, "vertex")
+    pv.Set(Vt.Vec3fArray([lean] * 4))
+    stage.GetRootLayer().Save()
+    r = wb.render(path, frame=1, method=method, resolution=(16, 12), aovs=())
+    assert r.rgba[6, 8, 0] == pytest.approx(0.5 / math.pi * 2.0 * 0.5, rel=2e-3)

@@ -3,10 +3,11 @@ visibility, upAxis Z and large coordinates are read as authored."""
 
 import numpy as np
 import pytest
-from pxr import Gf, UsdGeom, Vt
+from pxr import Gf, Sdf, UsdGeom, Vt
 
 from warp_blur.core.errors import InvalidGeometryError
-from warp_blur.usd.scene import Scene, vertex_normals, vertex_normals_since
+from warp_blur.usd.normals import vertex_normals, vertex_normals_since
+from warp_blur.usd.scene import Scene
 from warp_blur.usd.stage import Shutter, choose_camera, open_stage
 
 
@@ -237,3 +238,50 @@ def test_geomsubset_material_bindings_colour_their_faces(scene_path):
         rgba = wb.render(path, frame=1, method=method, resolution=(64, 48), samples=2, shadows="off").rgba
         left, right = rgba[24, 20, :3], rgba[24, 44, :3]
         assert np.allclose(left, (0, 1, 0), atol=1e-4) and np.allclose(right, (1, 0, 0), atol=1e-4), method
+
+
+def _normals_stage(path: str, interpolation: str, hard: bool = False) -> str:
+    """A flat quad (subdivisionScheme none) in the XY plane whose authored normals lean 45° to +X,
+    spun 90° about Z by its transform: shading must use the authored normals, moved by the prim."""
+    from authoring import add_camera, add_mesh, new_stage
+    from pxr import Gf, UsdGeom, Vt
+    stage = new_stage(path)
+    add_camera(stage)
+    mesh = add_mesh(stage, "/World/Quad", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [4], [0, 1, 2, 3],
+                    rotate_axis="Z", rotate=90.0)
+    n = Gf.Vec3f(0.7071068, 0.0, 0.7071068)
+    count = 4
+    values = [n] * count
+    if hard:
+        values[0] = Gf.Vec3f(0.0, 0.0, 1.0)
+    pv = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("normals", Sdf.ValueTypeNames.Normal3fArray, interpolation)
+    pv.Set(Vt.Vec3fArray(values))
+    stage.GetRootLayer().Save()
+    return path
+
+
+@pytest.mark.parametrize("interpolation", ["vertex", "faceVarying"])
+def test_authored_normals_shade_and_move_with_the_prim(scene_path, interpolation):
+    path = _normals_stage(scene_path(), interpolation)
+    _, _, scene = _scene(path)
+    assert scene.any_smooth
+    snap = scene.snapshot(1.0)
+    # the 45° lean to +X, turned 90° about Z, leans to +Y (the camera looks down -Z unrotated)
+    np.testing.assert_allclose(snap.normals, np.tile([[0.0, 0.7071068, 0.7071068]], (4, 1)), atol=1e-5)
+
+
+def test_hard_edged_face_varying_normals_keep_flat_facets(scene_path):
+    """Two quads sharing an edge whose corners there carry different normals (a hard edge): no one
+    normal per point, so the mesh keeps its flat facets."""
+    from authoring import add_camera, add_mesh, new_stage
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    mesh = add_mesh(stage, "/World/Fold", [(-2, -1, 0), (0, -1, 0), (2, -1, 0), (-2, 1, 0), (0, 1, 0), (2, 1, 0)],
+                    [4, 4], [0, 1, 4, 3, 1, 2, 5, 4])
+    left, right = Gf.Vec3f(-0.6, 0.0, 0.8), Gf.Vec3f(0.6, 0.0, 0.8)
+    pv = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("normals", Sdf.ValueTypeNames.Normal3fArray, "faceVarying")
+    pv.Set(Vt.Vec3fArray([left] * 4 + [right] * 4))
+    stage.GetRootLayer().Save()
+    _, _, scene = _scene(path)
+    assert not scene.any_smooth

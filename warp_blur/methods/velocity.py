@@ -32,7 +32,7 @@ from ..raster.device_data import make_bins, make_geometry
 from .frame import FrameContext
 from ..core.parallel import launch_pixels
 from ..kernels.raster import render_depth_motion, render_sharp_depth_motion
-from ..usd.scene import vertex_normals
+from ..usd.normals import vertex_normals
 
 SOFT_Z = wp.constant(0.01)
 

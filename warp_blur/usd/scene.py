@@ -20,6 +20,7 @@ from ..core.log import warn_once
 from .materials import MaterialTable
 from .curves import curves_unit_fields
 from .points import derived_points_fn, points_unit_fields
+from .normals import authored_normals_fn, transform_normals, vertex_normals, vertex_normals_since
 from .subdivision import mesh_refinement, stage_level, refined_surface_primvars, refined_triangles
 from .stage import Shutter
 from .primvars import corner_primvar
@@ -51,6 +52,7 @@ class GeomUnit:
     blur_scale: float = 1.0
     visibility_prims: list = field(default_factory=list)
     tri_materials: np.ndarray | None = None   # (T,) int32 per local triangle (GeomSubset bindings), else `material`
+    normals_at: Callable[[float], np.ndarray] | None = None   # time -> (N, 3) authored local normals (normals.py)
 
     def visible_at(self, time: float) -> bool:
         t = Usd.TimeCode(time)
@@ -312,6 +314,9 @@ class Scene:
             tris, face_of_tri, corner_weights = refined_triangles(ref)
             points_at = derived_points_fn(points_at, ref.stencil.__matmul__)
             npts = ref.stencil.shape[0]
+        normals_at = authored_normals_fn(prim, t, npts) if refined is None and not smooth and not skin else None
+        if normals_at is not None:
+            flags |= FLAG_SMOOTH
         tri_materials = self.materials.subset_materials(prim, t, material, face_of_tri)
         if refined is not None:
             colors, uvs = refined_surface_primvars(prim, t, self.materials.reads[material], counts, indices,
@@ -331,7 +336,8 @@ class Scene:
             path=path, prim=prim, local_tris=tris, num_points=npts, points_at=points_at,
             transforms_at=self._prim_transform_fn(xform_prim), num_instances=1,
             corner_colors=colors, corner_uvs=uvs, material=material,
-            flags=flags, blur_scale=blur, visibility_prims=[prim], tri_materials=tri_materials))
+            flags=flags, blur_scale=blur, visibility_prims=[prim], tri_materials=tri_materials,
+            normals_at=normals_at))
 
     def _add_gprim(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
         out = tessellate_gprim(prim, t)
@@ -482,6 +488,21 @@ class Scene:
         self._last_normals = (positions.copy(), normals)
         return normals
 
+    def shading_normals(self, positions: np.ndarray, time: float) -> np.ndarray:
+        """(V, 3) float32 camera-space shading normals at shutter time `time`: smooth vertex normals
+        of `positions`, replaced by the authored ones where a mesh has them (normals.py)."""
+        normals = self.vertex_normals(positions)
+        authored = [(ui, u) for ui, u in enumerate(self.units) if u.normals_at is not None]
+        if authored:
+            normals = normals.copy()
+            cam_from_world = self.cam_from_world(time)
+            for ui, u in authored:
+                t_prim = self.frame + (time - self.frame) * u.blur_scale
+                m = u.transforms_at(t_prim, self._xf_cache(t_prim)) @ cam_from_world[None]
+                o = self.unit_vertex_offsets[ui]
+                normals[o:o + u.num_points * u.num_instances] = transform_normals(u.normals_at(t_prim), m)
+        return normals
+
     def snapshot(self, time: float, with_normals: bool = True) -> Snapshot:
         """The scene at USD time `time` (within the shutter), in camera space (without vertex
         normals when with_normals is False: a probe that only compares positions)."""
@@ -501,7 +522,7 @@ class Scene:
             bad = next(u.path for ui, u in enumerate(self.units)
                        if not np.isfinite(positions[self.unit_vertex_offsets[ui]:self.unit_vertex_offsets[ui] + u.num_points * u.num_instances]).all())
             raise InvalidGeometryError(bad, f"non-finite transformed points at time {time}")
-        normals = (self.vertex_normals(positions) if self.any_smooth and with_normals
+        normals = (self.shading_normals(positions, time) if self.any_smooth and with_normals
                    else np.zeros((0, 3), np.float32))
         if self.headlight:
             lights = headlight_table()
@@ -510,36 +531,6 @@ class Scene:
         return Snapshot(time=time, positions=positions, normals=normals,
                         tri_visible=unit_visible[self.tri_unit] if len(self.units) else np.zeros(0, bool),
                         lights=lights, cam_from_world=cam_from_world)
-
-
-def vertex_normals(positions: np.ndarray, tris: np.ndarray) -> np.ndarray:
-    """(V, 3) float32 area-weighted, normalised vertex normals of a triangle mesh."""
-    a, b, c = positions[tris[:, 0]], positions[tris[:, 1]], positions[tris[:, 2]]
-    fn = np.cross(b - a, c - a)
-    idx = tris.ravel()
-    n = np.stack([np.bincount(idx, weights=np.repeat(fn[:, k], 3), minlength=len(positions))
-                  for k in range(3)], axis=1)
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    return (n / np.maximum(length, 1e-30)).astype(np.float32)
-
-
-def vertex_normals_since(normals: np.ndarray, before: np.ndarray, positions: np.ndarray,
-                         tris: np.ndarray) -> np.ndarray:
-    """vertex_normals(positions, tris) given `normals` of the same mesh at positions `before`:
-    only vertices sharing a triangle with a moved vertex are recomputed, from all their triangles
-    in the same order, so the result is bit-identical to recomputing everything."""
-    diff = positions != before
-    moved = diff[:, 0] | diff[:, 1] | diff[:, 2]      # (short-axis any() is far slower)
-    if not moved.any():
-        return normals
-    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
-    affected = np.zeros(len(positions), bool)
-    affected[tris[moved[a] | moved[b] | moved[c]].ravel()] = True
-    sub = tris[affected[a] | affected[b] | affected[c]]   # every triangle around an affected vertex
-    fresh = vertex_normals(positions, sub)
-    out = normals.copy()
-    out[affected] = fresh[affected]
-    return out
 
 
 def _is_light(prim: Usd.Prim) -> bool:

@@ -100,7 +100,8 @@ def emit_clipped(view: View, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: flo
             if prev_in:
                 # leaving the range: keep [start, lo] (the inside end of the bracket)
                 if lo > start:
-                    count += emit_pieces(e, m, o, d, start, lo, limit, base + count, iv_t, iv_z, iv_e, occ, row, g, whole)
+                    count += emit_pieces(e, m, o, d, start, lo, limit, base + count, iv_t, iv_z, iv_e, occ, row, g,
+                                         whole)
             else:
                 start = hi
         prev_in = now_in

@@ -210,7 +210,7 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
     positions = np.stack([snap(i).positions for i in keep])
     normals = None
     if scene.any_smooth:
-        normals = np.stack([scene.vertex_normals(snap(i).positions) for i in keep])
+        normals = np.stack([scene.shading_normals(snap(i).positions, snap(i).time) for i in keep])
     lights = np.stack([snap(i).lights for i in keep])
     lights_static = bool(all(np.array_equal(snaps[i].lights, snaps[0].lights) for i in snaps))
     tri_e, k0_e, k1_e = [], [], []
