@@ -88,9 +88,11 @@ def add_material(stage: Usd.Stage, path: str, diffuse=(0.0, 0.0, 0.0), emissive=
 
 
 def add_textured_material(stage: Usd.Stage, path: str, image: str, input_name: str = "emissiveColor",
-                          color_space: str = "raw", wrap: str = "clamp", st_name: str = "st") -> UsdShade.Material:
-    """A UsdPreviewSurface whose `input_name` reads the rgb of a UsdUVTexture of `image` (a path
-    relative to the stage), at texture coordinates from primvar `st_name`; black otherwise."""
+                          color_space: str = "raw", wrap: str = "clamp", st_name: str = "st",
+                          output: str = "rgb") -> UsdShade.Material:
+    """A UsdPreviewSurface whose `input_name` reads output `output` (rgb, r, g, b, a) of a
+    UsdUVTexture of `image` (a path relative to the stage), at texture coordinates from primvar
+    `st_name`; black otherwise."""
     mat = add_material(stage, path)
     surface = UsdShade.Shader.Get(stage, f"{path}/PreviewSurface")
     reader = UsdShade.Shader.Define(stage, f"{path}/StReader")
@@ -103,7 +105,9 @@ def add_textured_material(stage: Usd.Stage, path: str, image: str, input_name: s
     tex.CreateInput("wrapS", Sdf.ValueTypeNames.Token).Set(wrap)
     tex.CreateInput("wrapT", Sdf.ValueTypeNames.Token).Set(wrap)
     tex.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(reader.ConnectableAPI(), "result")
-    surface.GetInput(input_name).ConnectToSource(tex.ConnectableAPI(), "rgb")
+    out_type = Sdf.ValueTypeNames.Float3 if output == "rgb" else Sdf.ValueTypeNames.Float
+    tex.CreateOutput(output, out_type)
+    surface.GetInput(input_name).ConnectToSource(tex.ConnectableAPI(), output)
     return mat
 
 

@@ -30,6 +30,16 @@ class View:
 
 
 @wp.struct
+class Textures:
+    """Every texture of the frame (textures.py's layout), read by shading and by cutout tests."""
+
+    texels: wp.array(dtype=wp.vec4)      # all mip levels, linear RGBA
+    levels: wp.array2d(dtype=int)        # (levels, 3) offset, width, height
+    textures: wp.array2d(dtype=int)      # (textures, 4) first level, level count, wrapS, wrapT
+    bindings: wp.array2d(dtype=float)    # (bindings, 10) texture, channel, scale rgba, bias rgba
+
+
+@wp.struct
 class Geometry:
     """Camera-space triangles over the shutter (see module docstring)."""
 
@@ -47,6 +57,10 @@ class Geometry:
     num_segments: int                       # K
     velocities: wp.array(dtype=wp.vec3)     # (V,) per-shutter vertex velocities of static entries, or (1,) unused
     has_velocities: int                     # 1 when `velocities` holds them (a sharp instant whose shadow maps are at other instants)
+    tri_cutout: wp.array(dtype=wp.vec2)     # (T,) cutout test (opacity binding, or -1 none / -2 always hidden; threshold), or (1,) unused
+    has_cutouts: int                        # 1 when some triangle has a cutout test (cutout.py)
+    cutout_slots: int                       # time slots per shutter at which the analytic method tests a moving cutout
+    tex: Textures                           # the frame's textures (for cutout opacity)
 
 
 @wp.struct
@@ -76,10 +90,7 @@ class Shading:
     shadow_bias: float         # depth bias, in texels (world size of a texel at the receiver)
     shadow_normal_bias: float  # receiver offset along its normal, in texels
     shadow_pcf: int            # PCF radius in texels (0 = bilinear 2x2)
-    tex_texels: wp.array(dtype=wp.vec4)      # textures.py's layout: all mip levels, linear RGBA
-    tex_levels: wp.array2d(dtype=int)        # (levels, 3) offset, width, height
-    tex_textures: wp.array2d(dtype=int)      # (textures, 4) first level, level count, wrapS, wrapT
-    tex_bindings: wp.array2d(dtype=float)    # (bindings, 10) texture, channel, scale rgba, bias rgba
+    tex: Textures
 
 
 @wp.struct

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from .cutout import cutout_hides
 from .kernel_types import Bins, Geometry, Shading, View
 from .rays import entry_alpha, entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin
 from .shading import shade_entry_hit
@@ -36,7 +37,7 @@ def nearest_entry(view: View, geo: Geometry, bins: Bins, tile: int, sx: float, s
     """Nearest entry hit by the ray of sample (sx, sy) at shutter time u within the clipping range.
 
     Returns (entry or -1, interpolation alpha, hit (1, depth, w_b, w_c)). Ties in depth go to the
-    lower entry index, so the result is deterministic.
+    lower entry index, so the result is deterministic. Cut-out points are passed through (cutout.py).
     """
     best_e = int(-1)
     best_alpha = float(0.0)
@@ -49,7 +50,7 @@ def nearest_entry(view: View, geo: Geometry, bins: Bins, tile: int, sx: float, s
             hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
                                      entry_vertex(geo, e, vi[2], alpha), vi)
             if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
-                if best_e < 0 or hit[1] < best[1]:
+                if (best_e < 0 or hit[1] < best[1]) and not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3]):
                     best_e = e
                     best_alpha = alpha
                     best = hit

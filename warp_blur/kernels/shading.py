@@ -8,8 +8,8 @@ the dome's ambient term is not shadowed. A material with black diffuse and black
 emissive colour exactly, whatever the lights and the dome. Back faces are shaded with the
 flipped normal, double- and single-sided alike (as Cycles, Karma and RenderMan shade a mesh seen
 from behind; SPEC §4 changed by issue 19: a single-sided back face used to keep its front normal
-and render dark). Opacity is ignored
-(rendered opaque, with a warning at load time).
+and render dark). Cutout opacity is a hit test (cutout.py), not shading; fractional opacity is
+ignored (rendered opaque, with a warning at load time).
 """
 
 from __future__ import annotations
@@ -161,14 +161,14 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
             uv = (1.0 - wb - wc) * geo.tri_uvs[3 * tri] + wb * geo.tri_uvs[3 * tri + 1] + wc * geo.tri_uvs[3 * tri + 2]
             lod = geo.tri_lod[tri]
         if sh.materials[m, 12] >= 0.0:
-            diffuse = binding_value(sh, int(sh.materials[m, 12]), uv, lod)
+            diffuse = binding_value(sh.tex, int(sh.materials[m, 12]), uv, lod)
         if sh.materials[m, 13] >= 0.0:
-            emissive = binding_value(sh, int(sh.materials[m, 13]), uv, lod)
+            emissive = binding_value(sh.tex, int(sh.materials[m, 13]), uv, lod)
         if sh.materials[m, 14] >= 0.0:
-            roughness = wp.clamp(binding_value(sh, int(sh.materials[m, 14]), uv, lod)[0], 0.02, 1.0)
+            roughness = wp.clamp(binding_value(sh.tex, int(sh.materials[m, 14]), uv, lod)[0], 0.02, 1.0)
         metallic = sh.materials[m, 19]
         if sh.materials[m, 15] >= 0.0:
-            metallic = wp.clamp(binding_value(sh, int(sh.materials[m, 15]), uv, lod)[0], 0.0, 1.0)
+            metallic = wp.clamp(binding_value(sh.tex, int(sh.materials[m, 15]), uv, lod)[0], 0.0, 1.0)
         if sh.materials[m, 17] > 0.5:
             dielectric = sh.materials[m, 18]
             f0 = (1.0 - metallic) * wp.vec3(dielectric, dielectric, dielectric) + metallic * diffuse

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from .cutout import cutout_hides
 from .kernel_types import Bins, Geometry, View
 from .raster import box_rejects, centre_ray, nearest_at_centre
 from .rays import entry_vertex, intersect_triangle
@@ -57,7 +58,8 @@ def splat_shadow_depth(view: View, geo: Geometry, bins: Bins, entries: wp.array(
                 o, d = centre_ray(view, py * view.width + px)
                 hit = intersect_triangle(o, d, a, b, c, vi)
                 if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
-                    wp.atomic_min(depth, py * view.width + px, hit[1])
+                    if not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3]):
+                        wp.atomic_min(depth, py * view.width + px, hit[1])
 
 
 @wp.kernel(enable_backward=False)

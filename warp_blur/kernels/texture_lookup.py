@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from .kernel_types import Shading
+from .kernel_types import Textures
 
 
 @wp.func
@@ -27,21 +27,21 @@ def wrap_index(i: int, n: int, mode: int) -> int:
 
 
 @wp.func
-def texel(sh: Shading, level: int, x: int, y: int, wrap_s: int, wrap_t: int) -> wp.vec4:
-    w = sh.tex_levels[level, 1]
-    h = sh.tex_levels[level, 2]
+def texel(tx: Textures, level: int, x: int, y: int, wrap_s: int, wrap_t: int) -> wp.vec4:
+    w = tx.levels[level, 1]
+    h = tx.levels[level, 2]
     xi = wrap_index(x, w, wrap_s)
     yi = wrap_index(y, h, wrap_t)
     if xi < 0 or yi < 0:
         return wp.vec4(0.0, 0.0, 0.0, 0.0)
-    return sh.tex_texels[sh.tex_levels[level, 0] + yi * w + xi]
+    return tx.texels[tx.levels[level, 0] + yi * w + xi]
 
 
 @wp.func
-def bilinear(sh: Shading, level: int, uv: wp.vec2, wrap_s: int, wrap_t: int) -> wp.vec4:
+def bilinear(tx: Textures, level: int, uv: wp.vec2, wrap_s: int, wrap_t: int) -> wp.vec4:
     """Texel-centre bilinear lookup; uv in USD's convention (t = 0 at the image's bottom row)."""
-    w = float(sh.tex_levels[level, 1])
-    h = float(sh.tex_levels[level, 2])
+    w = float(tx.levels[level, 1])
+    h = float(tx.levels[level, 2])
     x = uv[0] * w - 0.5
     y = (1.0 - uv[1]) * h - 0.5
     x0 = wp.floor(x)
@@ -50,40 +50,40 @@ def bilinear(sh: Shading, level: int, uv: wp.vec2, wrap_s: int, wrap_t: int) -> 
     fy = y - y0
     ix = int(x0)
     iy = int(y0)
-    a = texel(sh, level, ix, iy, wrap_s, wrap_t)
-    b = texel(sh, level, ix + 1, iy, wrap_s, wrap_t)
-    c = texel(sh, level, ix, iy + 1, wrap_s, wrap_t)
-    d = texel(sh, level, ix + 1, iy + 1, wrap_s, wrap_t)
+    a = texel(tx, level, ix, iy, wrap_s, wrap_t)
+    b = texel(tx, level, ix + 1, iy, wrap_s, wrap_t)
+    c = texel(tx, level, ix, iy + 1, wrap_s, wrap_t)
+    d = texel(tx, level, ix + 1, iy + 1, wrap_s, wrap_t)
     return (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy
 
 
 @wp.func
-def sample_texture(sh: Shading, tex: int, uv: wp.vec2, lod: float) -> wp.vec4:
+def sample_texture(tx: Textures, tex: int, uv: wp.vec2, lod: float) -> wp.vec4:
     """Trilinear lookup of texture tex at mip level `lod` (0 = full resolution)."""
-    first = sh.tex_textures[tex, 0]
-    count = sh.tex_textures[tex, 1]
-    ws = sh.tex_textures[tex, 2]
-    wt = sh.tex_textures[tex, 3]
+    first = tx.textures[tex, 0]
+    count = tx.textures[tex, 1]
+    ws = tx.textures[tex, 2]
+    wt = tx.textures[tex, 3]
     l = wp.clamp(lod, 0.0, float(count - 1))
     l0 = int(wp.floor(l))
     f = l - float(l0)
-    out = bilinear(sh, first + l0, uv, ws, wt)
+    out = bilinear(tx, first + l0, uv, ws, wt)
     if f > 0.0 and l0 + 1 < count:
-        out = out * (1.0 - f) + bilinear(sh, first + l0 + 1, uv, ws, wt) * f
+        out = out * (1.0 - f) + bilinear(tx, first + l0 + 1, uv, ws, wt) * f
     return out
 
 
 @wp.func
-def binding_value(sh: Shading, b: int, uv: wp.vec2, lod_base: float) -> wp.vec3:
+def binding_value(tx: Textures, b: int, uv: wp.vec2, lod_base: float) -> wp.vec3:
     """A material input read from binding b: rgb for output 'rgb', else the one channel in x, y, z.
     lod_base is log2 of the surface's texture-coordinate span per pixel (textures.py)."""
-    tex = int(sh.tex_bindings[b, 0])
-    channel = int(sh.tex_bindings[b, 1])
-    first = sh.tex_textures[tex, 0]
-    side = float(wp.max(sh.tex_levels[first, 1], sh.tex_levels[first, 2]))
-    c = sample_texture(sh, tex, uv, lod_base + wp.log2(side))
-    v = wp.vec4(c[0] * sh.tex_bindings[b, 2] + sh.tex_bindings[b, 6], c[1] * sh.tex_bindings[b, 3] + sh.tex_bindings[b, 7],
-                c[2] * sh.tex_bindings[b, 4] + sh.tex_bindings[b, 8], c[3] * sh.tex_bindings[b, 5] + sh.tex_bindings[b, 9])
+    tex = int(tx.bindings[b, 0])
+    channel = int(tx.bindings[b, 1])
+    first = tx.textures[tex, 0]
+    side = float(wp.max(tx.levels[first, 1], tx.levels[first, 2]))
+    c = sample_texture(tx, tex, uv, lod_base + wp.log2(side))
+    v = wp.vec4(c[0] * tx.bindings[b, 2] + tx.bindings[b, 6], c[1] * tx.bindings[b, 3] + tx.bindings[b, 7],
+                c[2] * tx.bindings[b, 4] + tx.bindings[b, 8], c[3] * tx.bindings[b, 5] + tx.bindings[b, 9])
     if channel == 0:
         return wp.vec3(v[0], v[1], v[2])
     s = v[channel - 1]

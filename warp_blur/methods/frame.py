@@ -82,7 +82,8 @@ class FrameContext:
                 centre = self.probe_snapshots.get(0.5) or self.snapshot(0.5, with_normals=False)
                 lod = texture_lod(self.proj, centre.positions, s.tri_vertices, s.corner_uvs)
             self._tables = TriangleTables(s.tri_vertices, s.tri_flags, s.tri_material, s.corner_colors, self.device,
-                                          s.corner_uvs if s.textured else None, lod)
+                                          s.corner_uvs if s.textured else None, lod, s.tri_cutout,
+                                          s.materials.textures)
         return self._tables
 
     def snapshot(self, u: float, with_normals: bool = True) -> Snapshot:

@@ -16,6 +16,7 @@ import numpy as np
 import warp as wp
 
 from .frame import FrameContext
+from ..kernels.cutout import cutout_hides
 from ..kernels.kernel_types import Bins, Geometry, Shading, View
 from ..core.parallel import launch_pixels
 from ..kernels.raster import add_pixel, box_rejects, pixel_tile
@@ -98,7 +99,8 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
                     alpha = (u - u0) / (u1 - u0)
                     hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
                                              entry_vertex(geo, e, vi[2], alpha), vi)
-                    if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far and hit[1] < best_z[tid, j]:
+                    if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far and hit[1] < best_z[tid, j] \
+                            and not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3]):
                         best_z[tid, j] = hit[1]
                         best_e[tid, j] = e
     moving_seen = int(0)

@@ -76,10 +76,10 @@ def swept_bands(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarra
     vi_t = tri_vertices[entry_tri].T                                    # (3, E)
     pts = np.concatenate([positions[entry_k0[None, :], vi_t], positions[entry_k1[None, :], vi_t]], axis=0)
     depth = -pts[..., 2].astype(np.float64)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):   # behind the eye: not finite, no band
         r = proj.project(pts)                                           # (6, E, 2)
-    motion = r[3:].mean(axis=0) - r[:3].mean(axis=0)                    # (E, 2)
-    length = np.hypot(motion[:, 0], motion[:, 1])
+        motion = r[3:].mean(axis=0) - r[:3].mean(axis=0)                # (E, 2)
+        length = np.hypot(motion[:, 0], motion[:, 1])
     ok = np.isfinite(r).all(axis=(0, 2)) & (length > 2.0)
     if not proj.orthographic:
         ok &= (depth >= proj.near).all(axis=0)

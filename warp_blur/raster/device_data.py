@@ -7,7 +7,7 @@ import warp as wp
 
 from .binning import TileBins
 from ..core.camera import Projection
-from ..kernels.kernel_types import Bins, Geometry, Shading, View
+from ..kernels.kernel_types import Bins, Geometry, Shading, Textures, View
 from ..kernels.shadow_lookup import FACE_WIDTH
 
 
@@ -36,11 +36,13 @@ def make_view(proj: Projection, spatial: int, bins: TileBins | None, tile_size: 
 
 class TriangleTables:
     """Per-triangle data uploaded once per frame (topology, flags, materials, corner colours
-    (3T, 3), and for textured scenes corner texture coordinates (3T, 2) and levels of detail (T,))."""
+    (3T, 3), and for textured scenes corner texture coordinates (3T, 2), levels of detail (T,),
+    and cutout tests (T, 2) with the textures they read (cutout.py))."""
 
     def __init__(self, tri_vertices: np.ndarray, tri_flags: np.ndarray, tri_material: np.ndarray,
                  corner_colors: np.ndarray, device: str, corner_uvs: np.ndarray | None = None,
-                 tri_lod: np.ndarray | None = None) -> None:
+                 tri_lod: np.ndarray | None = None, tri_cutout: np.ndarray | None = None,
+                 textures=None) -> None:
         self.tri_vertices = device_array(tri_vertices.astype(np.int32), wp.vec3i, device)
         self.tri_flags = device_array(tri_flags.astype(np.int32), int, device)
         self.tri_material = device_array(tri_material.astype(np.int32), int, device)
@@ -49,6 +51,10 @@ class TriangleTables:
         self.tri_uvs = device_array((corner_uvs if corner_uvs is not None else empty.reshape(0, 2)).astype(np.float32),
                                     wp.vec2, device)
         self.tri_lod = device_array((tri_lod if tri_lod is not None else empty).astype(np.float32), float, device)
+        self.has_cutouts = tri_cutout is not None and bool((tri_cutout[:, 0] != -1).any())
+        cut = tri_cutout if self.has_cutouts else empty.reshape(0, 2)
+        self.tri_cutout = device_array(cut.astype(np.float32), wp.vec2, device)
+        self.textures = texture_arrays(textures if self.has_cutouts else None, device)
         self.device = device
 
 
@@ -71,6 +77,8 @@ def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.nda
     g.tri_vertices, g.tri_flags = tables.tri_vertices, tables.tri_flags
     g.tri_material, g.tri_colors = tables.tri_material, tables.tri_colors
     g.tri_uvs, g.tri_lod = tables.tri_uvs, tables.tri_lod
+    g.tri_cutout, g.has_cutouts, g.tex = tables.tri_cutout, int(tables.has_cutouts), tables.textures
+    g.cutout_slots = 256   # the analytic method sets its own (its time bits)
     g.entry_tri = device_array(entry_tri.astype(np.int32), int, dev)
     g.entry_k0 = device_array(entry_k0.astype(np.int32), int, dev)
     g.entry_k1 = device_array(entry_k1.astype(np.int32), int, dev)
@@ -109,7 +117,7 @@ def instant_frames(lights: np.ndarray, times: int) -> np.ndarray:
     return out
 
 
-def texture_arrays(textures, device: str) -> tuple:
+def texture_arrays(textures, device: str) -> Textures:
     """The frame's textures (a textures.TextureSet, or None) on the device, uploaded once."""
     if textures is None:
         from ..usd.textures import TextureSet
@@ -117,9 +125,11 @@ def texture_arrays(textures, device: str) -> tuple:
     cached = textures.device_arrays.get(device)
     if cached is None:
         texels, levels, tex, bindings = textures.arrays()
-        cached = textures.device_arrays[device] = (
-            wp.array(texels, dtype=wp.vec4, device=device), wp.array(levels, dtype=int, device=device),
-            wp.array(tex, dtype=int, device=device), wp.array(bindings, dtype=float, device=device))
+        cached = textures.device_arrays[device] = Textures()
+        cached.texels = wp.array(texels, dtype=wp.vec4, device=device)
+        cached.levels = wp.array(levels, dtype=int, device=device)
+        cached.textures = wp.array(tex, dtype=int, device=device)
+        cached.bindings = wp.array(bindings, dtype=float, device=device)
     return cached
 
 
@@ -132,7 +142,7 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
     shadows.layout.ShadowData (or None: no light casts shadows) with its ShadowOptions; textures:
     the frame's textures.TextureSet (None: none)."""
     s = Shading()
-    s.tex_texels, s.tex_levels, s.tex_textures, s.tex_bindings = texture_arrays(textures, device)
+    s.tex = texture_arrays(textures, device)
     s.materials = wp.array(np.ascontiguousarray(materials, np.float32), dtype=float, device=device)
     nl = lights.shape[1]
     lt = lights if nl else np.zeros((lights.shape[0], 1, lights.shape[2]), np.float32)

@@ -198,8 +198,9 @@ def preview_surface_row(material: UsdShade.Material, frame: float,
     roughness = float(src["roughness"].value)
     opacity = float(src["opacity"].value)
     threshold = float(get("opacityThreshold"))
-    if opacity < 1.0 or src["opacity"].binding >= 0:
-        warn_once(f"opacity:{path}", f"material {path}: opacity (< 1 or textured) is not supported (rendered opaque)")
+    if threshold <= 0.0 and (opacity < 1.0 or src["opacity"].binding >= 0):
+        warn_once(f"opacity:{path}", f"material {path}: fractional opacity (opacityThreshold 0) is not supported "
+                  "(rendered opaque)")
     textured = any(s.binding >= 0 for s in src.values()) or src["diffuseColor"].primvar is not None
     specular_workflow = bool(int(get("useSpecularWorkflow")))
     metallic = float(np.clip(src["metallic"].value, 0.0, 1.0))
@@ -270,6 +271,17 @@ class MaterialTable:
 
     def array(self) -> np.ndarray:
         return np.stack(self.rows).astype(np.float32)
+
+    def cutouts(self) -> np.ndarray:
+        """(M, 2) float32 per material: its cutout test (kernels/cutout.py): (opacity binding, or
+        -1 none / -2 hidden everywhere, opacityThreshold). USD masks where opacityThreshold > 0:
+        points with opacity below it are not there, the rest are opaque."""
+        a = self.array()
+        threshold = a[:, COL_OPACITY_THRESHOLD]
+        binding = a[:, COL_BINDINGS + 4]
+        code = np.where(binding >= 0, binding, np.where(a[:, 11] < threshold, -2.0, -1.0))
+        code = np.where(threshold > 0, code, -1.0)
+        return np.stack([code, threshold], axis=1).astype(np.float32)
 
     def emissive_only(self) -> np.ndarray:
         """(M,) bool: radiance cannot depend on lights (black diffuse and specular)."""

@@ -465,6 +465,9 @@ class Scene:
         self.tri_unit = cat(unit_of_tri, (0,), np.int32)
         self.tri_object = cat(objects, (0,), np.int32)   # (T,) prim instance of each triangle
         self.material_table = self.materials.array()
+        cut = self.materials.cutouts()
+        # (T, 2) cutout test per triangle (kernels/cutout.py), or None when no material masks
+        self.tri_cutout = cut[self.tri_material] if (cut[:, 0] != -1).any() and len(self.tri_material) else None
         self.any_smooth = bool((self.tri_flags & FLAG_SMOOTH).any())
 
     @property

@@ -38,6 +38,9 @@ OCCLUSION_CULLING = True
 # Samples that no moving entry reaches are resolved in the classify pass, with the resolve's own
 # weights (tests switch this off to compare against resolving stored intervals).
 DIRECT_STATIC_PIXELS = True
+# Time slots per shutter at which exact mode tests a moving cutout (with time bits, the bits'
+# own slots): a cutout's mask is point-sampled in time, its edges in space stay exact.
+EXACT_CUTOUT_SLOTS = 256
 
 
 def cull_slots(bits: int) -> tuple[int, int]:
@@ -173,6 +176,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     n_shade = s.resolved_samples
     dev = ctx.device
     plan, geo, (static_bins, moving_bins), sh, view = prepare_motion(ctx)
+    geo.cutout_slots = bits if bits > 0 else EXACT_CUTOUT_SLOTS
     num_px = ctx.num_pixels
     rgba = wp.zeros((num_px, 4), dtype=float, device=dev)
     fallbacks, truncated, shaded = BandCounter(dev), BandCounter(dev), BandCounter(dev)

@@ -7,7 +7,8 @@ Each covered piece is then:
   depth is sampled at 9 points and crossings are found by bisection (a *sampled fallback*,
   counted in the stats as `near_far_fallbacks`);
 - split where view depth is far from linear (checked at the midpoint), each piece stored as an
-  interval (u0, u1, z0, z1, entry). Nothing is shaded here: the resolve shades the intervals it
+  interval (u0, u1, z0, z1, entry); a cutout entry's piece keeps only the time slots where the
+  point it shows is not cut out (emit_visible). Nothing is shaded here: the resolve shades the intervals it
   finds visible (radiance.py), so hidden ones cost only their coverage.
 The classify pass finds each sample's nearest static surface and whether any moving entry can
 reach it in front (no shading; a sample none reaches is shaded and resolved there, like a sharp
@@ -20,12 +21,13 @@ from __future__ import annotations
 
 import warp as wp
 
+from ...kernels.cutout import cutout_hides, has_cutout
 from ...kernels.kernel_types import Bins, Geometry, Shading, View
 from ...kernels.raster import add_pixel, box_rejects, pixel_tile
 from ...kernels.rays import intersect_triangle, static_entry_hit
 from .coverage import DEGENERATE_TOL_F32, MAX_SPAN_PIECES, next_breakpoint, piece_covered, prism_edges
 from .occlusion import all_hidden, entry_hidden, interval_hidden, record_interval, reset_slots
-from .moving import Moving, depth_at, depth_range, entry_moving, eye_relative, in_range, sample_ray
+from .moving import Moving, depth_at, depth_range, entry_moving, eye_relative, in_range, plane_hit, sample_ray
 from .radiance import boundary_radiance, lerp_in_time, radiance_plan, sub_piece_time
 from .resolve import span_slots
 
@@ -73,13 +75,51 @@ def emit_pieces(e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: float, s_b: floa
 
 
 @wp.func
-def emit_clipped(view: View, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: float, s_b: float, may_clip: int,
+def emit_visible(geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: float, s_b: float, limit: int,
+                 base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int),
+                 occ: wp.array2d(dtype=float), row: int, g: int, whole: int) -> int:
+    """emit_pieces, except that a moving cutout entry's piece (kernels/cutout.py) is first cut at
+    the time slots (geo.cutout_slots per shutter), each slot's part kept only where the point hit
+    at the slot's centre (clamped into the piece) is not cut out, and the kept runs emitted: the
+    mask is point-sampled at the instants of accumulation with that many instants."""
+    tri = geo.entry_tri[e]
+    du = m.u1 - m.u0
+    if not has_cutout(geo, tri) or du <= 0.0:
+        return emit_pieces(e, m, o, d, s_a, s_b, limit, base, iv_t, iv_z, iv_e, occ, row, g, whole)
+    r = float(geo.cutout_slots)
+    u_a = m.u0 + s_a * du
+    u_b = m.u0 + s_b * du
+    k_a = wp.clamp(int(wp.floor(u_a * r)), 0, geo.cutout_slots - 1)
+    k_b = wp.clamp(int(wp.floor(u_b * r)), k_a, geo.cutout_slots - 1)
+    kept = int(0)
+    run = float(-1.0)   # entry time where the current run of kept slots starts (-1: none)
+    for k in range(k_a, k_b + 1):
+        lo = wp.max(u_a, float(k) / r)
+        hi = wp.min(u_b, float(k + 1) / r)
+        if hi > lo or k == k_a:
+            s_c = (wp.clamp((float(k) + 0.5) / r, lo, hi) - m.u0) / du
+            hit = plane_hit(o, d, m.a0 + s_c * (m.a1 - m.a0), m.b0 + s_c * (m.b1 - m.b0), m.c0 + s_c * (m.c1 - m.c0))
+            s_lo = wp.max(s_a, (lo - m.u0) / du)
+            if cutout_hides(geo, tri, hit[2], hit[3]):
+                if run >= 0.0 and s_lo > run:
+                    kept += emit_pieces(e, m, o, d, run, s_lo, limit, base + kept, iv_t, iv_z, iv_e, occ, row, g,
+                                        whole)
+                run = -1.0
+            elif run < 0.0:
+                run = s_lo
+    if run >= 0.0 and s_b > run:
+        kept += emit_pieces(e, m, o, d, run, s_b, limit, base + kept, iv_t, iv_z, iv_e, occ, row, g, whole)
+    return kept
+
+
+@wp.func
+def emit_clipped(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: float, s_b: float, may_clip: int,
                  limit: int, base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
                  iv_e: wp.array(dtype=int), fallbacks: wp.array(dtype=int), occ: wp.array2d(dtype=float), row: int,
                  g: int, whole: int) -> int:
     """Emit the part of a covered piece inside the clipping range (sampled when it may cross)."""
     if may_clip == 0:
-        return emit_pieces(e, m, o, d, s_a, s_b, limit, base, iv_t, iv_z, iv_e, occ, row, g, whole)
+        return emit_visible(geo, e, m, o, d, s_a, s_b, limit, base, iv_t, iv_z, iv_e, occ, row, g, whole)
     wp.atomic_add(fallbacks, 0, 1)
     count = int(0)
     prev_s = s_a
@@ -100,14 +140,15 @@ def emit_clipped(view: View, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: flo
             if prev_in:
                 # leaving the range: keep [start, lo] (the inside end of the bracket)
                 if lo > start:
-                    count += emit_pieces(e, m, o, d, start, lo, limit, base + count, iv_t, iv_z, iv_e, occ, row, g,
+                    count += emit_visible(geo, e, m, o, d, start, lo, limit, base + count, iv_t, iv_z, iv_e, occ, row, g,
                                          whole)
             else:
                 start = hi
         prev_in = now_in
         prev_s = s
     if prev_in and s_b > start:
-        count += emit_pieces(e, m, o, d, start, s_b, limit, base + count, iv_t, iv_z, iv_e, occ, row, g, whole)
+        count += emit_visible(geo, e, m, o, d, start, s_b, limit, base + count, iv_t, iv_z, iv_e, occ, row, g,
+                              whole)
     return count
 
 
@@ -122,7 +163,7 @@ def entry_intervals(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d:
     if geo.entry_k0[e] == geo.entry_k1[e]:
         # static entry: covered for the whole shutter or never
         hit = intersect_triangle(o, d, m.a0, m.b0, m.c0, vi)
-        if hit[0] == 0.0 or not in_range(view, hit[1]):
+        if hit[0] == 0.0 or not in_range(view, hit[1]) or cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3]):
             return 0
         return emit_pieces(e, m, o, d, 0.0, 1.0, limit, base, iv_t, iv_z, iv_e, occ, row, g, whole)
     a0, b0, c0, da, db, dc = eye_relative(m, o)
@@ -139,7 +180,7 @@ def entry_intervals(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d:
             s_next = next_breakpoint(ra, rb, rc, s_prev)
             sm = 0.5 * (s_prev + s_next)
             if piece_covered(ca, cb, cc, dga, dgb, dgc, a0, da, b0, db, c0, dc, vi, sm, 0) != 0:
-                count += emit_clipped(view, e, m, o, d, s_prev, s_next, may_clip, limit, base + count, iv_t, iv_z,
+                count += emit_clipped(view, geo, e, m, o, d, s_prev, s_next, may_clip, limit, base + count, iv_t, iv_z,
                                       iv_e, fallbacks, occ, row, g, whole)
             s_prev = s_next
     return count
@@ -157,7 +198,8 @@ def nearest_static(view: View, geo: Geometry, static_bins: Bins, tile: int, sx: 
         e = static_bins.tile_entries[i]
         if not box_rejects(static_bins, e, sx, sy):
             hit = static_entry_hit(geo, e, o, d)
-            if hit[0] > 0.0 and in_range(view, hit[1]) and hit[1] < z_static:
+            if hit[0] > 0.0 and in_range(view, hit[1]) and hit[1] < z_static \
+                    and not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3]):
                 z_static = hit[1]
                 e_static = e
     return e_static, z_static
