@@ -79,7 +79,11 @@ class Shading:
     lights: wp.array3d(dtype=float)
     num_lights: int
     light_segments: int
-    dome: wp.vec3
+    dome: wp.vec3                            # uniform dome radiance (a textured dome's mean)
+    dome_binding: int                        # textured dome: its map's texture binding (dome.py), else -1
+    dome_rot: wp.mat33                       # camera-space directions -> dome directions
+    dome_sh: wp.array(dtype=wp.vec3)         # (9,) SH coefficients of the dome's irradiance (dome space)
+    dome_lod: float                          # log2 of a pixel's angle / 2 pi (the map's mip level)
     shadow_maps: wp.array4d(dtype=float)
     shadow_varying: wp.array3d(dtype=wp.uint8)
     shadow_faces: wp.array2d(dtype=float)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import warp as wp
 
 from .kernel_types import Geometry, Shading, View
+from .dome import dome_ambient
 from .rays import entry_normal, entry_vertex
 from .light_table import light_value, light_vec
 from .shadow_lookup import light_visibility
@@ -192,7 +193,7 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
             n = wp.normalize(ns)
     if wp.dot(ng, v) < 0.0:
         n = -n
-    out = emissive + wp.cw_mul(diffuse + f0, sh.dome)
+    out = emissive + wp.cw_mul(diffuse, dome_ambient(sh, n)) + wp.cw_mul(f0, sh.dome)
     vel = entry_point_velocity(geo, e, vi, hit)
     for j in range(sh.num_lights):
         out = out + direct_light(sh, j, u, du, p, vel, n, v, diffuse, f0, roughness)

@@ -161,7 +161,7 @@ class FrameContext:
                     shadows = self._instant_shadows.data_for_instant(self.shutter_fraction(snapshots[0].time),
                                                                      self.instants, self.settings.shadow_times)
         sh = make_shading(self.scene.material_table, lights, self.scene.dome, self.device, shadows,
-                          self.shadow_options(), self.scene.materials.textures)
+                          self.shadow_options(), self.scene.materials.textures, self.dome_frame())
         if len(snapshots) == 1:
             self._shading_last = (snapshots[0].time, sh)
         return sh
@@ -186,6 +186,20 @@ class FrameContext:
                 b.entry_bands = bands
         self.counters["bin_pairs"] = self.counters.get("bin_pairs", 0) + sum(b.num_pairs for b in out)
         return out
+
+    def dome_frame(self) -> tuple | None:
+        """make_shading's textured dome for this frame (None: uniform or no dome): its binding,
+        camera-to-dome rotation at the shutter centre (a turning camera does not blur the map),
+        irradiance SH and the map's mip level from a pixel's angle."""
+        dm = self.scene.dome_map
+        if dm is None:
+            return None
+        m3 = self.scene.cam_from_world(self.shutter.time(0.5))[:3, :3]
+        rot = (np.linalg.inv(m3) @ dm.rotation).T
+        x0, _y0, x1, _y1 = self.proj.window
+        angle = (x1 - x0) / self.proj.width
+        lod = -30.0 if self.proj.orthographic else float(np.log2(max(angle, 1e-12) / (2.0 * np.pi)))
+        return dm.binding, rot, dm.irradiance, lod
 
     def view(self, bins: TileBins | None):
         return make_view(self.proj, self.settings.spatial_samples, bins, TILE_SIZE)

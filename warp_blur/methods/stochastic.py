@@ -17,6 +17,7 @@ import warp as wp
 
 from .frame import FrameContext
 from ..kernels.cutout import cutout_hides
+from ..kernels.dome import dome_along
 from ..kernels.kernel_types import Bins, Geometry, Shading, View
 from ..core.parallel import launch_pixels
 from ..kernels.raster import add_pixel, box_rejects, pixel_tile
@@ -120,7 +121,7 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
                                          static_entry_hit(geo, e_static, o, d))
             cover = 1.0
         else:
-            color = sh.dome
+            color = dome_along(sh, d)
     else:
         for j in range(n):
             e = best_e[tid, j]
@@ -137,7 +138,7 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
                 color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
                 cover = cover + 1.0
             else:
-                color = color + sh.dome
+                color = color + dome_along(sh, d)
         color = color / float(n)
         cover = cover / float(n)
     add_pixel(rgba, pix, weight, color, cover)

@@ -134,15 +134,25 @@ def texture_arrays(textures, device: str) -> Textures:
 
 
 _NO_TEXTURES: dict = {}
+_NO_DOME_SH: dict = {}
 
 
 def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, device: str,
-                 shadows=None, options=None, textures=None) -> Shading:
+                 shadows=None, options=None, textures=None, dome_frame=None) -> Shading:
     """lights: (L+1, NL, LIGHT_WIDTH) tables at L+1 knots over the shutter; shadows: a
     shadows.layout.ShadowData (or None: no light casts shadows) with its ShadowOptions; textures:
-    the frame's textures.TextureSet (None: none)."""
+    the frame's textures.TextureSet (None: none); dome_frame: a textured dome as
+    (binding, camera-to-dome rotation (3, 3) for column vectors, irradiance SH (9, 3), lod), or None."""
     s = Shading()
     s.tex = texture_arrays(textures, device)
+    if dome_frame is None:
+        s.dome_binding, s.dome_rot, s.dome_lod = -1, wp.mat33(np.eye(3, dtype=np.float32)), 0.0
+        s.dome_sh = _NO_DOME_SH.get(device) or _NO_DOME_SH.setdefault(device, wp.zeros(9, dtype=wp.vec3,
+                                                                                          device=device))
+    else:
+        binding, rot, coeffs, lod = dome_frame
+        s.dome_binding, s.dome_rot, s.dome_lod = int(binding), wp.mat33(np.asarray(rot, np.float32)), float(lod)
+        s.dome_sh = wp.array(np.ascontiguousarray(coeffs, np.float32), dtype=wp.vec3, device=device)
     s.materials = wp.array(np.ascontiguousarray(materials, np.float32), dtype=float, device=device)
     nl = lights.shape[1]
     lt = lights if nl else np.zeros((lights.shape[0], 1, lights.shape[2]), np.float32)

@@ -57,7 +57,8 @@ def scene_report(path: str, camera: str | None = None, frame: float | None = Non
         "meters_per_unit": UsdGeom.GetStageMetersPerUnit(stage),
         "triangles": t, "prims": prims, "moving_prims": sum(p["moves_in_world"] for p in prims),
         "camera_moves": bool(np.abs(open_s.cam_from_world - close_s.cam_from_world).max() > 1e-9),
-        "lights": lights, "dome": scene.has_dome, "headlight": scene.headlight,
+        "lights": lights, "dome": scene.has_dome,
+        "dome_texture": scene.dome_map is not None, "headlight": scene.headlight,
         "memory_estimate_bytes": memory,
     }
 

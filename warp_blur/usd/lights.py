@@ -11,7 +11,8 @@ Irradiance models: distant E = L π sin²(angle/2) cosθ (UsdLux: a disc of angu
 `inputs:angle`; E = L cosθ with inputs:normalize or angle 0), shadows hard whatever the angle; sphere of radius r at distance d: E = π L (r/d)² cosθ
 (a point light, radius 0, has the intensity of USD's fallback 0.5 radius); rect and disk lights
 are integrated over a fixed 4×4 stratified set of points on the light.
-A DomeLight without texture is the background radiance and a uniform ambient term.
+A DomeLight without texture is the background radiance and a uniform ambient term (with a
+latlong texture: see dome.py).
 """
 
 from __future__ import annotations
@@ -88,10 +89,7 @@ def find_lights(stage: Usd.Stage) -> tuple[list[LightPrim], np.ndarray | None]:
             lights.append(LightPrim(prim, RECT))
         elif prim.IsA(UsdLux.DiskLight):
             lights.append(LightPrim(prim, DISK))
-        elif prim.IsA(UsdLux.DomeLight):
-            dl = UsdLux.DomeLight(prim)
-            if dl.GetTextureFileAttr().Get():
-                warn_once(f"tex:{path}", f"dome light {path}: textureFile is not supported (uniform colour used)")
+        elif prim.IsA(UsdLux.DomeLight) or prim.IsA(UsdLux.DomeLight_1):
             if dome is not None:
                 warn_once(f"dome2:{path}", f"dome light {path} ignored: only the first dome light is used")
                 continue

@@ -15,6 +15,7 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdShade, UsdSkel
 
 from ..core.errors import InvalidGeometryError
+from .dome import dome_map
 from .lights import dome_radiance, find_lights, headlight_table, light_table
 from ..core.log import warn_once
 from .materials import MaterialTable
@@ -109,6 +110,10 @@ class Scene:
         self._collect()
         self.light_prims, dome = find_lights(stage)
         self.dome = dome_radiance(dome, frame)
+        # a textured dome: its map (background and ambient); self.dome is then the map's mean
+        self.dome_map = dome_map(dome.prim if dome is not None else None, frame, self.dome, self.materials.textures)
+        if self.dome_map is not None:
+            self.dome = self.dome_map.mean
         self.has_dome = dome is not None
         self.headlight = not self.light_prims and dome is None
         self._build_tables()

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from ...kernels.dome import dome_along
 from ...kernels.kernel_types import Geometry, Shading, View
 from .moving import entry_moving, entry_time, sample_ray
 from .radiance import boundary_radiance, lerp_in_time, radiance_plan, sub_piece_time
@@ -180,7 +181,7 @@ def run_color(view: View, geo: Geometry, sh: Shading, o: wp.vec3, d: wp.vec3,
     if b <= a:
         return wp.vec3(0.0, 0.0, 0.0)
     if front < 0:
-        return sh.dome * (b - a)
+        return dome_along(sh, d) * (b - a)
     shaded[0] = shaded[0] + 1
     return span_mean(view, geo, sh, iv_e[front], o, d, iv_t[front], a, b, n_shade_max, lights_static) * (b - a)
 
@@ -259,7 +260,7 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
                     shaded[0] = shaded[0] + 1
                     color = color + visible_radiance(view, geo, sh, iv_e[i], o, d, ti, n_shade_max, lights_static,
                                                      bits, masks, row, 2 * words)
-    color = color + sh.dome * (float(bits - covered) / float(bits))
+    color = color + dome_along(sh, d) * (float(bits - covered) / float(bits))
     rgba[pix, 0] = rgba[pix, 0] + weight * color[0]
     rgba[pix, 1] = rgba[pix, 1] + weight * color[1]
     rgba[pix, 2] = rgba[pix, 2] + weight * color[2]
@@ -345,7 +346,7 @@ def resolve_exact(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_
                                           lights_static) * (1.0 - tau)
                 cover = cover + (1.0 - tau)
             else:
-                color = color + sh.dome * (1.0 - tau)
+                color = color + dome_along(sh, d) * (1.0 - tau)
             run_start = 1.0
             tau = 1.0
     color = color + run_color(view, geo, sh, o, d, iv_t, iv_e, run_front, run_start, 1.0, n_shade_max,

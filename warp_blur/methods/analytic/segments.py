@@ -285,5 +285,5 @@ def prepare_motion(ctx):
         with ctx.timed("shadow_total"):
             shadows = maps.data([(b + 0.5) / num_times for b in range(num_times)])
     sh = make_shading(ctx.scene.material_table, plan.lights, ctx.scene.dome, ctx.device, shadows,
-                      ctx.shadow_options(), ctx.scene.materials.textures)
+                      ctx.shadow_options(), ctx.scene.materials.textures, ctx.dome_frame())
     return plan, geo, bins, sh, ctx.view(tile_bins[0])
