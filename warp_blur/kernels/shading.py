@@ -134,6 +134,43 @@ def entry_point_velocity(geo: Geometry, e: int, vi: wp.vec3i, hit: wp.vec4) -> w
 
 
 @wp.func
+def normal_mapped(geo: Geometry, sh: Shading, tri: int, binding: int, a: wp.vec3, b: wp.vec3, c: wp.vec3,
+                  n: wp.vec3, wb: float, wc: float) -> wp.vec3:
+    """The shading normal n perturbed by a tangent-space normal map (UsdPreviewSurface `normal`:
+    the binding's value after scale and bias, x along +s, y along +t, z along n), with the
+    tangent frame from triangle tri's corner positions a, b, c and texture coordinates,
+    orthogonalised against n. A triangle whose coordinates are degenerate keeps n."""
+    uv0 = geo.tri_uvs[3 * tri]
+    uv1 = geo.tri_uvs[3 * tri + 1]
+    uv2 = geo.tri_uvs[3 * tri + 2]
+    e1 = b - a
+    e2 = c - a
+    du1 = uv1[0] - uv0[0]
+    dv1 = uv1[1] - uv0[1]
+    du2 = uv2[0] - uv0[0]
+    dv2 = uv2[1] - uv0[1]
+    det = du1 * dv2 - du2 * dv1
+    if det == 0.0:
+        return n
+    t = (e1 * dv2 - e2 * dv1) / det
+    bt = (e2 * du1 - e1 * du2) / det
+    t = t - n * wp.dot(n, t)
+    if wp.length(t) == 0.0:
+        return n
+    t = wp.normalize(t)
+    bt = bt - n * wp.dot(n, bt) - t * wp.dot(t, bt)
+    if wp.length(bt) == 0.0:
+        return n
+    bt = wp.normalize(bt)
+    uv = (1.0 - wb - wc) * uv0 + wb * uv1 + wc * uv2
+    tn = binding_value(sh.tex, binding, uv, geo.tri_lod[tri])
+    p = tn[0] * t + tn[1] * bt + tn[2] * n
+    if wp.length(p) == 0.0 or wp.dot(p, n) <= 0.0:
+        return n
+    return wp.normalize(p)
+
+
+@wp.func
 def shade_entry_hit(view: View, geo: Geometry, sh: Shading, e: int, alpha: float, u: float,
                     o: wp.vec3, d: wp.vec3, hit: wp.vec4) -> wp.vec3:
     """Radiance leaving the hit point of entry e (at interpolation alpha, shutter time u)."""
@@ -191,6 +228,8 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
         ns = (1.0 - wb - wc) * entry_normal(geo, e, vi[0], alpha) + wb * entry_normal(geo, e, vi[1], alpha) + wc * entry_normal(geo, e, vi[2], alpha)
         if wp.length(ns) > 0.0:
             n = wp.normalize(ns)
+    if sh.materials[m, 22] >= 0.0 and geo.tri_uvs.shape[0] >= 3 * tri + 3:
+        n = normal_mapped(geo, sh, tri, int(sh.materials[m, 22]), a, b, c, n, wb, wc)
     if wp.dot(ng, v) < 0.0:
         n = -n
     out = emissive + wp.cw_mul(diffuse, dome_ambient(sh, n)) + wp.cw_mul(f0, sh.dome)

@@ -5,8 +5,9 @@ diffuse rgb, emissive rgb, F0 rgb (specular reflectance at normal incidence), ro
 use_corner_color (1 = diffuse comes from a colour primvar at the triangle's corners, displayColor
 or the one a UsdPrimvarReader names), opacity; then the texture bindings of diffuse, emissive,
 roughness, metallic and opacity (-1 none; see textures.py), the metallic-workflow flag, the
-dielectric F0, metallic, opacityThreshold and a flag that the kernel must evaluate bindings and
-the metallic mix per hit (then diffuse holds the raw diffuseColor).
+dielectric F0, metallic, opacityThreshold, a flag that the kernel must evaluate bindings and
+the metallic mix per hit (then diffuse holds the raw diffuseColor), and the binding of the
+tangent-space `normal` map (-1 none).
 The specular F0 follows UsdPreviewSurface: specularColor in the specular workflow, else
 lerp(((ior-1)/(ior+1))^2, diffuseColor, metallic) with the diffuse scaled by (1 - metallic).
 Inputs connected to a UsdUVTexture (coordinates from a UsdPrimvarReader_float2) or, for the
@@ -32,14 +33,15 @@ COL_DIELECTRIC_F0 = 18
 COL_METALLIC = 19
 COL_OPACITY_THRESHOLD = 20
 COL_TEXTURED = 21          # 1: the kernel evaluates bindings and the metallic mix per hit
-_BOUND_INPUTS = ("diffuseColor", "emissiveColor", "roughness", "metallic", "opacity")
+COL_NORMAL_BINDING = 22    # texture binding of `normal` (tangent-space normal map), -1 none
+_BOUND_INPUTS = ("diffuseColor", "emissiveColor", "roughness", "metallic", "opacity", "normal")
 #: USD's own UsdPreviewSurface fallbacks.
 FALLBACKS = {
     "diffuseColor": (0.18, 0.18, 0.18), "emissiveColor": (0.0, 0.0, 0.0),
     "specularColor": (0.0, 0.0, 0.0), "useSpecularWorkflow": 0, "roughness": 0.5,
-    "metallic": 0.0, "ior": 1.5, "opacity": 1.0, "opacityThreshold": 0.0,
+    "metallic": 0.0, "ior": 1.5, "opacity": 1.0, "opacityThreshold": 0.0, "normal": (0.0, 0.0, 1.0),
 }
-_READ = set(FALLBACKS) | {"clearcoat", "clearcoatRoughness", "displacement", "occlusion", "normal"}
+_READ = set(FALLBACKS) | {"clearcoat", "clearcoatRoughness", "displacement", "occlusion"}
 _TEXTURE_FALLBACK = (0.0, 0.0, 0.0, 1.0)   # UsdUVTexture's own fallback
 
 
@@ -50,6 +52,7 @@ def display_color_row() -> np.ndarray:
     row[10] = 1.0  # use displayColor
     row[11] = 1.0
     row[COL_BINDINGS:COL_BINDINGS + 5] = -1
+    row[COL_NORMAL_BINDING] = -1
     return row
 
 
@@ -217,7 +220,8 @@ def preview_surface_row(material: UsdShade.Material, frame: float,
     row[9] = np.clip(roughness, 0.02, 1.0)
     row[10] = 1.0 if src["diffuseColor"].primvar is not None else 0.0
     row[11] = opacity
-    row[COL_BINDINGS:COL_BINDINGS + 5] = [src[n].binding for n in _BOUND_INPUTS]
+    row[COL_BINDINGS:COL_BINDINGS + 5] = [src[n].binding for n in _BOUND_INPUTS[:5]]
+    row[COL_NORMAL_BINDING] = src["normal"].binding
     row[COL_METALLIC_WORKFLOW] = 0.0 if specular_workflow else 1.0
     row[COL_DIELECTRIC_F0] = dielectric
     row[COL_METALLIC] = metallic
