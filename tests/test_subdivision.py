@@ -14,7 +14,7 @@ CUBE_FACES = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 
 
 
 def test_one_level_on_a_cube_follows_the_rules():
-    stencil, quads, _ = _one_level([np.array(f) for f in CUBE_FACES], 8)
+    stencil, quads, _, _, _ = _one_level([np.array(f) for f in CUBE_FACES], 8)
     refined = stencil @ CUBE_POINTS
     assert refined.shape == (8 + 12 + 6, 3) and quads.shape == (24, 4)
     # vertex points: (Q + 2R + (n - 3) P) / n with n = 3 -> 5/9 of each corner
@@ -79,3 +79,64 @@ def test_a_moving_subdivided_mesh_renders_in_every_method(scene_path, method):
                                                                      (0, 1, 1), (1, 0, 1)}
     result = wb.render(path, frame=1, method=method, resolution=(64, 48), samples=4, shadows="off")
     assert np.isfinite(result.rgba).all() and result.rgba[..., 3].max() > 0.9
+
+
+CUBE_EDGES = sorted({tuple(sorted((f[i], f[(i + 1) % 4]))) for f in CUBE_FACES for i in range(4)})
+
+
+def _refined_cube(sharpness: float | None = None, corner: float | None = None) -> np.ndarray:
+    """The cube's points after two levels, every edge creased with `sharpness` and/or every
+    vertex a corner of sharpness `corner`."""
+    from warp_blur.usd.subdivision import refine
+    creases = {e: sharpness for e in CUBE_EDGES} if sharpness is not None else None
+    corners = np.full(8, corner) if corner is not None else None
+    ref = refine(np.full(6, 4), np.concatenate(CUBE_FACES), 8, 2, creases, corners)
+    return ref.stencil @ CUBE_POINTS
+
+
+def test_infinitely_sharp_creases_keep_a_cube_a_cube():
+    """Every edge creased at sharpness >= the levels: every vertex is a corner (3 creased edges),
+    edges stay straight and faces flat, so each refined point lies on the cube's surface."""
+    for sharpness in (2.0, 10.0):
+        pts = _refined_cube(sharpness)
+        np.testing.assert_allclose(np.abs(pts).max(axis=1), 1.0, atol=1e-12)
+        np.testing.assert_allclose(np.abs(pts[:8]), 1.0)          # the corners stay put
+    smooth = _refined_cube()
+    assert np.abs(smooth).max(axis=1).min() < 0.7
+
+
+def test_semi_sharp_creases_blend_between_smooth_and_sharp():
+    """A corner's refined position moves monotonically from the smooth limit towards the cage
+    corner as the creases' sharpness grows (0.5 halfway in the first level's rule)."""
+    corner = [float(np.abs(_refined_cube(s)[0]).mean()) for s in (0.0, 0.5, 1.0, 1.5, 2.0)]
+    assert all(a < b for a, b in zip(corner, corner[1:]))
+    assert corner[-1] == pytest.approx(1.0)
+    from warp_blur.usd.subdivision import _one_level
+    smooth = _one_level([np.array(f) for f in CUBE_FACES], 8)[0] @ CUBE_POINTS
+    half = _one_level([np.array(f) for f in CUBE_FACES], 8, {e: 0.5 for e in CUBE_EDGES})[0] @ CUBE_POINTS
+    np.testing.assert_allclose(half[:8], 0.5 * smooth[:8] + 0.5 * CUBE_POINTS)          # corner rule, w = 0.5
+    np.testing.assert_allclose(np.sort(np.abs(half[8:20]), axis=1), np.tile([0.0, 0.875, 0.875], (12, 1)))
+
+
+def test_corner_sharpness_pins_a_vertex_only():
+    pts = _refined_cube(corner=10.0)
+    np.testing.assert_allclose(np.abs(pts[:8]), 1.0)
+    assert np.abs(pts[8:]).max(axis=1).max() < 1.0          # everything else is still smoothed
+
+
+def test_authored_creases_are_read_per_crease_and_per_edge(tmp_path):
+    from pxr import Usd
+    from warp_blur.usd.subdivision import crease_tables
+    stage = Usd.Stage.CreateInMemory()
+    mesh = UsdGeom.Mesh.Define(stage, "/M")
+    mesh.CreateCreaseIndicesAttr([0, 1, 3, 4, 5])
+    mesh.CreateCreaseLengthsAttr([3, 2])
+    mesh.CreateCreaseSharpnessesAttr([2.0, 0.5])              # one per crease
+    mesh.CreateCornerIndicesAttr([7])
+    mesh.CreateCornerSharpnessesAttr([3.0])
+    edges, corners = crease_tables(mesh, Usd.TimeCode(0), 8)
+    assert edges == {(0, 1): 2.0, (1, 3): 2.0, (4, 5): 0.5}
+    assert corners[7] == 3.0 and corners[:7].max() == 0.0
+    mesh.GetCreaseSharpnessesAttr().Set([2.0, 1.0, 0.5])     # one per crease edge
+    edges, _ = crease_tables(mesh, Usd.TimeCode(0), 8)
+    assert edges == {(0, 1): 2.0, (1, 3): 1.0, (4, 5): 0.5}

@@ -5,9 +5,13 @@ so a deforming or moving cage is refined at every shutter time by one matrix pro
 Rules: face points are face centroids; interior edge points average the edge's ends and its two
 faces' points; interior vertices move to (Q + 2R + (n − 3) P) / n; boundary edges and vertices
 follow the boundary curve (3/4 P + 1/8 of each boundary neighbour), and a boundary vertex with two
-edges is a corner that stays put (USD's `edgeAndCorner`). Meshes with authored creases or corners,
-holes, a left-handed orientation or non-manifold edges are not refined (their cage is rendered,
-as before), nor are point-instancer prototypes and skinned meshes. The level is one for the
+edges is a corner that stays put (USD's `edgeAndCorner`). Semi-sharp creases and corners follow
+DeRose et al. (1998): an edge of sharpness s ≥ 1 (boundaries always) takes the sharp rule (its
+midpoint), 0 < s < 1 blends smooth and sharp by s, and its halves carry s − 1 to the next level; a
+vertex on two creased edges follows the crease curve, on three or more (or with a corner
+sharpness) stays put, blended by their mean sharpness below 1. Meshes with holes, a left-handed
+orientation or non-manifold edges are not refined (their cage is rendered, as before), nor are
+point-instancer prototypes and skinned meshes. The level is one for the
 stage: the highest (up to MAX_LEVEL) at which all its subdivision meshes together stay within
 SCENE_FACE_BUDGET faces (a triangle budget, not the meshes' size on screen). Primvars are
 carried per face corner, bilinearly within each cage face.
@@ -39,10 +43,13 @@ class Refinement:
     levels: int
 
 
-def _one_level(faces: list[np.ndarray], n: int):
-    """One Catmull-Clark level of polygons `faces` over n points: (stencil (n', n), quads (F', 4),
-    (face, corner) of each quad's source and per-corner weights over the face's corners), or None
-    for a non-manifold mesh."""
+def _one_level(faces: list[np.ndarray], n: int, edge_sharpness: dict | None = None,
+               vertex_sharpness: np.ndarray | None = None):
+    """One Catmull-Clark level of polygons `faces` over n points, with semi-sharp creases
+    (edge_sharpness: {(a, b) with a < b: sharpness}) and corners (vertex_sharpness (n,)): (stencil
+    (n', n), quads (F', 4), (face, corner, k) of each quad's source, the child edges' and
+    vertices' sharpness), or None for a non-manifold mesh."""
+    edge_sharpness = edge_sharpness or {}
     edge_id: dict[tuple[int, int], int] = {}
     edge_faces: list[list[int]] = []
     for f, fv in enumerate(faces):
@@ -58,19 +65,23 @@ def _one_level(faces: list[np.ndarray], n: int):
         return None
     nf, ne = len(faces), len(edge_faces)
     edges = np.array(list(edge_id.keys()), np.int64).reshape(-1, 2)
+    sharp = np.array([float(edge_sharpness.get(key, 0.0)) for key in edge_id], np.float64)
+    v_sharp = np.zeros(n) if vertex_sharpness is None else np.asarray(vertex_sharpness, np.float64)
     # face points
     rows = np.concatenate([np.full(len(fv), f) for f, fv in enumerate(faces)])
     cols = np.concatenate(faces)
     vals = np.concatenate([np.full(len(fv), 1.0 / len(fv)) for fv in faces])
     face_pts = sparse.csr_matrix((vals, (rows, cols)), shape=(nf, n))
-    # edge points
+    # edge points: smooth (ends and faces' points) blended towards the midpoint by the edge's
+    # sharpness (sharp at >= 1, boundaries always)
     boundary = np.array([len(ef) == 1 for ef in edge_faces])
+    w_sharp = np.where(boundary, 1.0, np.clip(sharp, 0.0, 1.0))
     mid = sparse.csr_matrix((np.full(2 * ne, 0.5), (np.repeat(np.arange(ne), 2), edges.ravel())), shape=(ne, n))
     ef_rows = [e for e, ef in enumerate(edge_faces) if len(ef) == 2 for _ in ef]
     ef_cols = [f for ef in edge_faces if len(ef) == 2 for f in ef]
     edge_face_avg = sparse.csr_matrix((np.full(len(ef_rows), 0.5), (ef_rows, ef_cols)), shape=(ne, nf))
-    interior_e = sparse.diags((~boundary).astype(float))
-    edge_pts = sparse.diags(np.where(boundary, 1.0, 0.5)) @ mid + 0.5 * interior_e @ (edge_face_avg @ face_pts)
+    edge_pts = (sparse.diags(0.5 + 0.5 * w_sharp) @ mid
+                + sparse.diags(0.5 * (1.0 - w_sharp)) @ (edge_face_avg @ face_pts))
     # vertex points
     v_faces = [[] for _ in range(n)]
     for f, fv in enumerate(faces):
@@ -82,28 +93,47 @@ def _one_level(faces: list[np.ndarray], n: int):
         v_edges[b].append(e)
     vr, vc, vv = [], [], []            # rows of (vertex, cage point, weight)
     fr, fc, fw = [], [], []            # rows of (vertex, face point, weight)
+
+    def add(v: int, col: int, w: float, face: bool = False) -> None:
+        (fr if face else vr).append(v)
+        (fc if face else vc).append(col)
+        (fw if face else vv).append(w)
+
     for v in range(n):
         es = v_edges[v]
         if not es:                      # a point no face uses: keep it
-            vr.append(v), vc.append(v), vv.append(1.0)
+            add(v, v, 1.0)
             continue
-        bnd = [e for e in es if boundary[e]]
-        if bnd:
-            if len(es) == 2 and len(bnd) == 2:      # a corner
-                vr.append(v), vc.append(v), vv.append(1.0)
+        creased = [e for e in es if boundary[e] or sharp[e] > 0.0]
+        if any(boundary[e] for e in es) and len(es) == 2:
+            add(v, v, 1.0)              # a boundary corner (USD's edgeAndCorner)
+            continue
+        # the sharp rule and its weight: corner (>= 3 creased edges, or a corner sharpness), crease
+        # (2 creased edges: the curve along them), else none; boundaries are infinitely sharp
+        crease_mean = float(np.mean([np.inf if boundary[e] else sharp[e] for e in creased])) if creased else 0.0
+        rule, weight = "smooth", 0.0
+        if v_sharp[v] > 0.0 or len(creased) >= 3:
+            rule, weight = "corner", max(v_sharp[v], crease_mean if len(creased) >= 3 else 0.0)
+        elif len(creased) == 2:
+            rule, weight = "crease", crease_mean
+        weight = float(np.clip(weight, 0.0, 1.0))
+        if weight > 0.0:
+            if rule == "corner":
+                add(v, v, weight)
             else:
-                vr.append(v), vc.append(v), vv.append(0.75)
-                for e in bnd[:2]:
+                add(v, v, 0.75 * weight)
+                for e in creased:
                     other = edges[e][0] if edges[e][1] == v else edges[e][1]
-                    vr.append(v), vc.append(int(other)), vv.append(0.125)
-            continue
-        k = len(es)
-        for f in v_faces[v]:           # Q / k: the mean of the faces' points, over k
-            fr.append(v), fc.append(f), fw.append(1.0 / (len(v_faces[v]) * k))
-        for e in es:                    # 2 R / k: edge midpoints' mean
-            for w in edges[e]:
-                vr.append(v), vc.append(int(w)), vv.append(2.0 * 0.5 / (k * k))
-        vr.append(v), vc.append(v), vv.append((k - 3.0) / k)
+                    add(v, int(other), 0.125 * weight)
+        smooth = 1.0 - weight
+        if smooth > 0.0:
+            k = len(es)
+            for f in v_faces[v]:        # Q / k: the mean of the faces' points, over k
+                add(v, f, smooth / (len(v_faces[v]) * k), face=True)
+            for e in es:                # 2 R / k: edge midpoints' mean
+                for w in edges[e]:
+                    add(v, int(w), smooth * 2.0 * 0.5 / (k * k))
+            add(v, v, smooth * (k - 3.0) / k)
     vert_pts = (sparse.csr_matrix((vv, (vr, vc)), shape=(n, n))
                 + sparse.csr_matrix((fw, (fr, fc)), shape=(n, nf)) @ face_pts)
     stencil = sparse.vstack([vert_pts, edge_pts, face_pts]).tocsr()
@@ -114,7 +144,42 @@ def _one_level(faces: list[np.ndarray], n: int):
             a, b, p = int(fv[i]), int(fv[(i + 1) % k]), int(fv[i - 1])
             quads.append((a, n + edge_id[(min(a, b), max(a, b))], n + ne + f, n + edge_id[(min(p, a), max(p, a))]))
             sources.append((f, i, k))
-    return stencil, np.asarray(quads, np.int64), sources
+    # children: each creased edge's two halves keep its sharpness less one, corners likewise
+    child_edges = {}
+    for e in np.nonzero(sharp > 1.0)[0]:
+        a, b = int(edges[e][0]), int(edges[e][1])
+        for end in (a, b):
+            child_edges[(end, n + int(e))] = sharp[e] - 1.0
+    child_vertices = np.zeros(n + ne + nf)
+    child_vertices[:n] = np.maximum(v_sharp - 1.0, 0.0)
+    return stencil, np.asarray(quads, np.int64), sources, child_edges, child_vertices
+
+
+def crease_tables(mesh, time, num_points: int) -> tuple[dict, np.ndarray]:
+    """A UsdGeom.Mesh's creases ({(a, b) with a < b: sharpness}, one sharpness per crease or per
+    crease edge, as USD allows) and corners ((num_points,) sharpness)."""
+    indices = np.asarray(mesh.GetCreaseIndicesAttr().Get(time) or [], np.int64)
+    lengths = np.asarray(mesh.GetCreaseLengthsAttr().Get(time) or [], np.int64)
+    sharpness = np.asarray(mesh.GetCreaseSharpnessesAttr().Get(time) or [], np.float64)
+    edges: dict = {}
+    per_edge = len(sharpness) == int(np.maximum(lengths - 1, 0).sum()) and len(sharpness) != len(lengths)
+    start, k = 0, 0
+    for c, length in enumerate(lengths):
+        chain = indices[start:start + length]
+        for i in range(len(chain) - 1):
+            s_val = sharpness[k] if per_edge and k < len(sharpness) else (sharpness[c] if c < len(sharpness) else 0.0)
+            a, b = int(chain[i]), int(chain[i + 1])
+            if 0 <= a < num_points and 0 <= b < num_points and a != b and np.isfinite(s_val):
+                edges[(min(a, b), max(a, b))] = max(float(s_val), 0.0)
+            k += 1
+        start += int(length)
+    corners = np.zeros(num_points)
+    c_idx = np.asarray(mesh.GetCornerIndicesAttr().Get(time) or [], np.int64)
+    c_sharp = np.asarray(mesh.GetCornerSharpnessesAttr().Get(time) or [], np.float64)
+    for i, v in enumerate(c_idx):
+        if 0 <= v < num_points and i < len(c_sharp) and np.isfinite(c_sharp[i]):
+            corners[v] = max(corners[v], float(c_sharp[i]))
+    return edges, corners
 
 
 def _quad_corner_weights(i: int, k: int) -> np.ndarray:
@@ -147,10 +212,11 @@ def stage_level(stage, time) -> int:
     return level
 
 
-def refine(counts: np.ndarray, indices: np.ndarray, num_points: int, levels: int) -> Refinement | None:
+def refine(counts: np.ndarray, indices: np.ndarray, num_points: int, levels: int,
+           creases: dict | None = None, corners: np.ndarray | None = None) -> Refinement | None:
     """`levels` Catmull-Clark levels of a cage (faceVertexCounts, faceVertexIndices over
-    num_points); None when the mesh cannot be refined here (non-manifold, degenerate faces) or
-    levels is 0."""
+    num_points), with crease_tables' creases and corners; None when the mesh cannot be refined
+    here (non-manifold, degenerate faces) or levels is 0."""
     if len(counts) == 0 or counts.min() < 3:
         return None
     offsets = np.r_[0, np.cumsum(counts)]
@@ -165,10 +231,10 @@ def refine(counts: np.ndarray, indices: np.ndarray, num_points: int, levels: int
     n = num_points
     quads = None
     while level < levels:
-        out = _one_level(faces, n)
+        out = _one_level(faces, n, creases, corners)
         if out is None:
             return None
-        s, quads, sources = out
+        s, quads, sources, creases, corners = out
         stencil = (s @ stencil).tocsr()
         new_weights = np.zeros((len(quads), 4, kmax))
         new_parent = np.empty(len(quads), np.int64)
@@ -215,8 +281,7 @@ def refined_corner_primvar(prim, name: str, time, counts: np.ndarray, indices: n
 
 def mesh_refinement(mesh, time, num_points: int, levels: int):
     """(Refinement, counts, indices) for a catmullClark UsdGeom.Mesh that can be refined here, else
-    None (other schemes, holes, creases or corners, non-manifold topology: its cage renders with
-    smooth normals; creases and corners with a warning)."""
+    None (other schemes, holes, non-manifold topology: its cage renders with smooth normals)."""
     from pxr import UsdGeom
 
     from ..core.log import warn_once
@@ -228,11 +293,8 @@ def mesh_refinement(mesh, time, num_points: int, levels: int):
     indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(time) or [], np.int64)
     if mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded:
         return None
-    if len(mesh.GetCreaseIndicesAttr().Get(time) or []) or len(mesh.GetCornerIndicesAttr().Get(time) or []):
-        warn_once(f"creases:{mesh.GetPath()}", f"{mesh.GetPath()}: subdivision creases and corners are not "
-                                              f"refined; its control cage is rendered")
-        return None
-    ref = refine(counts, indices, num_points, levels)
+    creases, corners = crease_tables(mesh, time, num_points)
+    ref = refine(counts, indices, num_points, levels, creases, corners)
     return None if ref is None else (ref, counts, indices)
 
 
