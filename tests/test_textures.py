@@ -92,3 +92,30 @@ def test_every_method_reads_the_texture(scene_path):
         r = wb.render(path, frame=1, method=method, samples=8, resolution=(48, 32))
         row = r.rgba[16, :, 0]
         assert row.max() > 0.9 and row[r.rgba[16, :, 3] > 0.999].min() < 0.1, method
+
+
+def test_udim_tiles_are_read_by_their_texture_coordinates(scene_path):
+    """A quad with s over [0, 2] and t over [0, 2] reads tile 1001 (red) at the bottom left, 1002
+    (green) bottom right, 1011 (blue) top left; 1012 is missing and shows the node's fallback."""
+    from pxr import Gf, Sdf, UsdShade
+    path = scene_path()
+    folder = os.path.dirname(path)
+    for tile, rgb in ((1001, (255, 0, 0)), (1002, (0, 255, 0)), (1011, (0, 0, 255))):
+        Image.fromarray(np.full((8, 8, 3), rgb, np.uint8)).save(os.path.join(folder, f"tile.{tile}.png"))
+    stage = new_stage(path)
+    add_camera(stage, translate=(0, 0, 8), focal=24.0, haperture=36.0, vaperture=24.0)
+    mat = add_textured_material(stage, "/World/Looks/Tex", "./tile.<UDIM>.png")
+    UsdShade.Shader.Get(stage, "/World/Looks/Tex/Texture").CreateInput(
+        "fallback", Sdf.ValueTypeNames.Float4).Set(Gf.Vec4f(0.5, 0.5, 0.5, 1.0))
+    quad = add_quad(stage, "/World/Quad", 2.0, 1.5, material=mat, translate=(0, 0, 0))
+    set_st(quad, [(0, 0), (2, 0), (2, 2), (0, 2)])
+    stage.GetRootLayer().Save()
+    for method in ("accumulation", "analytic"):
+        r = wb.render(path, frame=1, method=method, samples=1, resolution=(W, H), shutter=(0.0, 0.0))
+        # the quad spans columns 32..64 and rows 20..44; sample each quarter's middle
+        cells = {"bl": r.rgba[38, 40, :3], "br": r.rgba[38, 56, :3], "tl": r.rgba[26, 40, :3],
+                 "tr": r.rgba[26, 56, :3]}
+        np.testing.assert_allclose(cells["bl"], (1, 0, 0), atol=1e-3, err_msg=method)
+        np.testing.assert_allclose(cells["br"], (0, 1, 0), atol=1e-3, err_msg=method)
+        np.testing.assert_allclose(cells["tl"], (0, 0, 1), atol=1e-3, err_msg=method)
+        np.testing.assert_allclose(cells["tr"], (0.5, 0.5, 0.5), atol=1e-3, err_msg=method)

@@ -126,33 +126,61 @@ def _texture_source(node: UsdShade.Shader, output: str, name: str, frame: float,
         const = float(const[0])
     asset = get("file", None)
     resolved = getattr(asset, "resolvedPath", "") if asset is not None else ""
+    if "<UDIM>" in getattr(asset, "path", ""):
+        return _udim_source(node, asset.path, output, name, frame, material_path, textures, const, fallback)
     if not resolved:
         warn_once(f"texfile:{material_path}:{name}",
                   f"material {material_path}: the texture for '{name}' has no file that resolves "
                   f"({getattr(asset, 'path', asset)}); using its fallback")
         return _Source(_finite(const, name, material_path))
-    if "<UDIM>" in resolved or "<UDIM>" in getattr(asset, "path", ""):
-        warn_once(f"udim:{material_path}", f"material {material_path}: UDIM textures are not read; using the fallback")
-        return _Source(_finite(const, name, material_path))
-    st_name = "st"
-    st_in = node.GetInput("st")
-    if st_in:
-        st_attr, st_is_output = _producer(st_in)
-        if st_attr is not None and st_is_output:
-            reader = UsdShade.Shader(st_attr.GetPrim())
-            st_name = str(_shader_input(reader, "varname", frame, "st") or "st")
     space = str(get("sourceColorSpace", "auto"))
     added = textures.add_texture(resolved, space, str(get("wrapS", "useMetadata")), str(get("wrapT", "useMetadata")))
     if added is None:
         return _Source(_finite(const, name, material_path))
+    scale, bias = _scale_bias(node, name, frame, material_path)
+    binding = textures.add_binding(added[0], output, scale, bias)
+    return _Source(_finite(const, name, material_path), binding=binding, st=_st_name(node, frame))
+
+
+def _st_name(node: UsdShade.Shader, frame: float) -> str:
+    """The primvar a UsdUVTexture's `st` reads (through a UsdPrimvarReader_float2), else "st"."""
+    st_in = node.GetInput("st")
+    if st_in:
+        st_attr, st_is_output = _producer(st_in)
+        if st_attr is not None and st_is_output:
+            return str(_shader_input(UsdShade.Shader(st_attr.GetPrim()), "varname", frame, "st") or "st")
+    return "st"
+
+
+def _scale_bias(node: UsdShade.Shader, name: str, frame: float, material_path: str):
+    get = lambda n, d: _shader_input(node, n, frame, d)  # noqa: E731
     scale = np.resize(np.asarray(get("scale", (1.0, 1.0, 1.0, 1.0)), np.float64).reshape(-1), 4)
     bias = np.resize(np.asarray(get("bias", (0.0, 0.0, 0.0, 0.0)), np.float64).reshape(-1), 4)
     if not (np.isfinite(scale).all() and np.isfinite(bias).all()):
         warn_once(f"texscale:{material_path}:{name}", f"material {material_path}: texture scale/bias for '{name}' "
                                                       f"is not finite; using 1 and 0")
         scale, bias = np.ones(4), np.zeros(4)
-    binding = textures.add_binding(added[0], output, scale, bias)
-    return _Source(_finite(const, name, material_path), binding=binding, st=st_name)
+    return scale, bias
+
+
+def _udim_source(node: UsdShade.Shader, pattern: str, output: str, name: str, frame: float, material_path: str,
+                 textures: TextureSet, const, fallback: np.ndarray) -> _Source:
+    """A UsdUVTexture whose file is a UDIM set (`<UDIM>` in its path): its tiles found as USD
+    finds them (UsdShade.UdimUtils, relative to the layer that authors the path), or its fallback."""
+    attr = _producer(node.GetInput("file"))[0]
+    stack = attr.GetPropertyStack(Usd.TimeCode(frame)) if attr is not None else []
+    layer = stack[0].layer if stack else node.GetPrim().GetStage().GetRootLayer()
+    tiles = [(path, int(tile)) for path, tile in UsdShade.UdimUtils.ResolveUdimTilePaths(pattern, layer)
+             if str(tile).isdigit()]
+    space = str(_shader_input(node, "sourceColorSpace", frame, "auto"))
+    base = textures.add_udim(tiles, space, fallback) if tiles else None
+    if base is None:
+        warn_once(f"udim:{material_path}:{name}", f"material {material_path}: no tile of the UDIM texture "
+                                                  f"{pattern} for '{name}' can be read; using its fallback")
+        return _Source(_finite(const, name, material_path))
+    scale, bias = _scale_bias(node, name, frame, material_path)
+    binding = textures.add_binding(base, output, scale, bias, udim=True)
+    return _Source(_finite(const, name, material_path), binding=binding, st=_st_name(node, frame))
 
 
 def _finite(value, name: str, material_path: str):

@@ -9,7 +9,9 @@ node's `fallback` value with a warning (USD's rule).
 Device layout (texture_lookup.py reads it): texels (N,) vec4 linear RGBA, all levels of all
 textures one after another; levels (NLev, 3) int [offset, width, height]; textures (NT, 4) int
 [first level, level count, wrapS, wrapT]; bindings (NB, BINDING_WIDTH) float [texture, output
-channel (0 rgb, 1 r, 2 g, 3 b, 4 a), scale rgba, bias rgba].
+channel (0 rgb, 1 r, 2 g, 3 b, 4 a), scale rgba, bias rgba, UDIM flag]. A UDIM binding's texture
+is the first of 100 consecutive textures, tiles 1001..1100 (tile 1001 + u + 10 v), a missing tile
+a 1×1 texture of the node's fallback.
 """
 
 from __future__ import annotations
@@ -25,7 +27,8 @@ from ..core.log import warn_once
 
 WRAP = {"repeat": 0, "mirror": 1, "clamp": 2, "black": 3, "useMetadata": 0}
 CHANNEL = {"rgb": 0, "r": 1, "g": 2, "b": 3, "a": 4}
-BINDING_WIDTH = 10
+BINDING_WIDTH = 11
+UDIM_TILES = 100        # tiles 1001..1100: 10 across, 10 up
 MAX_TEXTURE_SIDE = 8192
 
 _image_cache: dict[tuple, list[np.ndarray] | None] = {}
@@ -121,18 +124,39 @@ class TextureSet:
             if chain is None:
                 self._texture_index[key] = None
             else:
-                first = len(self.levels)
-                for lev in chain:
-                    h, w = lev.shape[:2]
-                    self.levels.append([self._size, w, h])
-                    self.texels.append(lev.reshape(-1, 4))
-                    self._size += w * h
-                self.textures.append([first, len(chain), WRAP.get(wrap_s, 0), WRAP.get(wrap_t, 0)])
-                self._texture_index[key] = (len(self.textures) - 1, max(chain[0].shape[:2]))
+                self._texture_index[key] = (self._append(chain, wrap_s, wrap_t), max(chain[0].shape[:2]))
         return self._texture_index[key]
 
-    def add_binding(self, texture: int, channel: str, scale, bias) -> int:
-        row = [float(texture), float(CHANNEL.get(channel, 0)), *map(float, scale), *map(float, bias)]
+    def _append(self, chain: list[np.ndarray], wrap_s: str, wrap_t: str) -> int:
+        first = len(self.levels)
+        for lev in chain:
+            h, w = lev.shape[:2]
+            self.levels.append([self._size, w, h])
+            self.texels.append(lev.reshape(-1, 4))
+            self._size += w * h
+        self.textures.append([first, len(chain), WRAP.get(wrap_s, 0), WRAP.get(wrap_t, 0)])
+        return len(self.textures) - 1
+
+    def add_udim(self, tiles: list[tuple[str, int]], color_space: str, fallback) -> int | None:
+        """The first of UDIM_TILES consecutive textures of a UDIM set ((resolved path, tile id)
+        pairs; tiles that are missing or unreadable hold `fallback` rgba), or None when no tile reads."""
+        chains = {}
+        for path, tile in tiles:
+            if 1001 <= tile < 1001 + UDIM_TILES:
+                chain = read_image(path, color_space)
+                if chain is not None:
+                    chains[tile] = chain
+        if not chains:
+            return None
+        blank = [np.asarray(fallback, np.float32).reshape(1, 1, 4)]
+        base = len(self.textures)
+        for tile in range(1001, 1001 + UDIM_TILES):
+            self._append(chains.get(tile, blank), "clamp", "clamp")
+        return base
+
+    def add_binding(self, texture: int, channel: str, scale, bias, udim: bool = False) -> int:
+        row = [float(texture), float(CHANNEL.get(channel, 0)), *map(float, scale), *map(float, bias),
+               1.0 if udim else 0.0]
         self.bindings.append(row)
         return len(self.bindings) - 1
 
