@@ -1,10 +1,22 @@
-"""Cutout opacity (UsdPreviewSurface `opacity` with `opacityThreshold` > 0) as a hit test shared
-by every method and the shadow maps: a surface point whose opacity is below the threshold is
-not there (rays pass through it); every other point is opaque, as USD's masked materials are.
+"""Opacity as a hit test shared by every method and the shadow maps.
 
-Each triangle's test is geo.tri_cutout[t] = (code, threshold): code -1 no test, -2 hidden
-everywhere (a constant opacity below the threshold), else the texture binding of `opacity`,
-looked up at the point's texture coordinates with the triangle's level of detail.
+Cutouts (UsdPreviewSurface `opacity` with `opacityThreshold` > 0): a surface point whose opacity
+is below the threshold is not there (rays pass through it); every other point is opaque, as
+USD's masked materials are.
+
+Fractional opacity (threshold 0, opacity α < 1): the point is there at a fraction α of a
+sample position's time samples (stratified stochastic transparency): present when α exceeds
+ξ = frac(h + k·step), k the time slot of the sample (PRESENCE_SLOTS per shutter), h a hash of
+the triangle and the sample position, step an irrational number picked by the triangle (so
+that two layers' sequences are independent). Averaged over a method's time samples, a surface
+covers α of them, and layers composite as α1 + (1 − α1) α2 on average: order-independent
+transparency, unbiased, noisy only where few samples are taken (the velocity method's one
+instant dithers).
+
+Each triangle's test is geo.tri_cutout[t] = (code, threshold, opacity): code -1 no test, -2
+hidden everywhere (a constant opacity below the threshold), -3 constant opacity (fractional),
+else the texture binding of `opacity`, looked up at the point's texture coordinates with the
+triangle's level of detail; threshold > 0 masks, else the opacity is fractional.
 """
 
 from __future__ import annotations
@@ -14,10 +26,47 @@ import warp as wp
 from .kernel_types import Geometry
 from .texture_lookup import binding_value
 
+PRESENCE_SLOTS = wp.constant(4096)
+
 
 @wp.func
-def cutout_hides(geo: Geometry, tri: int, wb: float, wc: float) -> bool:
-    """True when triangle tri's point at barycentrics (1 - wb - wc, wb, wc) is cut out."""
+def presence_step(tri: int) -> float:
+    """One of eight irrational steps (fractional parts of square roots of primes and the golden
+    ratio), chosen by the triangle."""
+    k = tri % 8
+    if k == 0:
+        return 0.6180339887
+    if k == 1:
+        return 0.4142135624
+    if k == 2:
+        return 0.7320508076
+    if k == 3:
+        return 0.2360679775
+    if k == 4:
+        return 0.6457513111
+    if k == 5:
+        return 0.3166247904
+    if k == 6:
+        return 0.6055512755
+    return 0.1231056256
+
+
+@wp.func
+def presence_threshold(tri: int, sx: float, sy: float, u: float) -> float:
+    """ξ in [0, 1) of triangle tri at sample position (sx, sy) (pixels) and shutter time u."""
+    ix = int(wp.floor(sx * 16.0))
+    iy = int(wp.floor(sy * 16.0))
+    state = wp.rand_init(tri, ix + iy * 8191)
+    h = wp.randf(state)
+    k = wp.clamp(int(u * float(PRESENCE_SLOTS)), 0, PRESENCE_SLOTS - 1)
+    x = h + presence_step(tri) * float(k)
+    return x - wp.floor(x)
+
+
+@wp.func
+def cutout_hides(geo: Geometry, tri: int, wb: float, wc: float, u: float, sx: float, sy: float) -> bool:
+    """True when triangle tri's point at barycentrics (1 - wb - wc, wb, wc) is not there for the
+    sample at position (sx, sy) (pixels) and shutter time u."""
     if geo.has_cutouts == 0:
         return False
     c = geo.tri_cutout[tri]
@@ -26,17 +75,31 @@ def cutout_hides(geo: Geometry, tri: int, wb: float, wc: float) -> bool:
         return False
     if code == -2:
         return True
-    uv = wp.vec2(0.0, 0.0)
-    lod = float(-30.0)
-    if geo.tri_uvs.shape[0] >= 3 * tri + 3:
-        uv = (1.0 - wb - wc) * geo.tri_uvs[3 * tri] + wb * geo.tri_uvs[3 * tri + 1] + wc * geo.tri_uvs[3 * tri + 2]
-        lod = geo.tri_lod[tri]
-    return binding_value(geo.tex, code, uv, lod)[0] < c[1]
+    opacity = c[2]
+    if code >= 0:
+        uv = wp.vec2(0.0, 0.0)
+        lod = float(-30.0)
+        if geo.tri_uvs.shape[0] >= 3 * tri + 3:
+            uv = (1.0 - wb - wc) * geo.tri_uvs[3 * tri] + wb * geo.tri_uvs[3 * tri + 1] + wc * geo.tri_uvs[3 * tri + 2]
+            lod = geo.tri_lod[tri]
+        opacity = binding_value(geo.tex, code, uv, lod)[0]
+    if c[1] > 0.0:
+        return opacity < c[1]
+    return opacity <= presence_threshold(tri, sx, sy, u)
 
 
 @wp.func
 def has_cutout(geo: Geometry, tri: int) -> bool:
-    """True when triangle tri has a cutout test (its coverage then depends on where it is hit)."""
+    """True when triangle tri has an opacity test (its coverage then depends on where it is hit)."""
     if geo.has_cutouts == 0:
         return False
     return int(geo.tri_cutout[tri][0]) != -1
+
+
+@wp.func
+def is_fractional(geo: Geometry, tri: int) -> bool:
+    """True when triangle tri's opacity is fractional (its presence changes with time slots)."""
+    if geo.has_cutouts == 0:
+        return False
+    c = geo.tri_cutout[tri]
+    return int(c[0]) != -1 and int(c[0]) != -2 and c[1] <= 0.0

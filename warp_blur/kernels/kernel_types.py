@@ -57,7 +57,7 @@ class Geometry:
     num_segments: int                       # K
     velocities: wp.array(dtype=wp.vec3)     # (V,) per-shutter vertex velocities of static entries, or (1,) unused
     has_velocities: int                     # 1 when `velocities` holds them (a sharp instant whose shadow maps are at other instants)
-    tri_cutout: wp.array(dtype=wp.vec2)     # (T,) cutout test (opacity binding, or -1 none / -2 always hidden; threshold), or (1,) unused
+    tri_cutout: wp.array(dtype=wp.vec3)     # (T,) opacity test (code, threshold, opacity; cutout.py), or (1,) unused
     has_cutouts: int                        # 1 when some triangle has a cutout test (cutout.py)
     cutout_slots: int                       # time slots per shutter at which the analytic method tests a moving cutout
     tex: Textures                           # the frame's textures (for cutout opacity)

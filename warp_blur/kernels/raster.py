@@ -51,7 +51,8 @@ def nearest_entry(view: View, geo: Geometry, bins: Bins, tile: int, sx: float, s
             hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
                                      entry_vertex(geo, e, vi[2], alpha), vi)
             if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
-                if (best_e < 0 or hit[1] < best[1]) and not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3]):
+                if (best_e < 0 or hit[1] < best[1]) and not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3], u,
+                                                                         sx, sy):
                     best_e = e
                     best_alpha = alpha
                     best = hit

@@ -58,7 +58,8 @@ def splat_shadow_depth(view: View, geo: Geometry, bins: Bins, entries: wp.array(
                 o, d = centre_ray(view, py * view.width + px)
                 hit = intersect_triangle(o, d, a, b, c, vi)
                 if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
-                    if not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3]):
+                    if not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3], 0.0, float(px) + 0.5,
+                                        float(py) + 0.5):
                         wp.atomic_min(depth, py * view.width + px, hit[1])
 
 

@@ -78,7 +78,7 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
         same_vis &= same_t
         differ = ~(same_t & same_v[scene.tri_vertices].all(axis=1))
         mark(snap.positions, np.nonzero(differ & visible(snap))[0])
-    still = same_vis & still_v[scene.tri_vertices].all(axis=1)
+    still = same_vis & still_v[scene.tri_vertices].all(axis=1) & ~scene.tri_fractional
     if not still.any():
         return None
     mark(first.positions, np.nonzero(~still & visible(first))[0])
@@ -113,8 +113,8 @@ def tile_rects(ctx: FrameContext, positions: np.ndarray, tris: np.ndarray, with_
 
 def render_accumulation(ctx: FrameContext) -> np.ndarray:
     n = ctx.settings.resolved_samples
-    if ctx.shutter.instant:
-        n = 1  # every instant is the same one
+    if ctx.shutter.instant and not ctx.scene.any_fractional:
+        n = 1  # every instant is the same one (fractional opacity still samples presence per instant)
     rgba = wp.zeros((ctx.num_pixels, 4), dtype=float, device=ctx.device)
     ctx.instants = n
     us = instants(n)

@@ -88,11 +88,16 @@ class FrameContext:
 
     def snapshot(self, u: float, with_normals: bool = True) -> Snapshot:
         with self.timed("scene"):
-            return self.scene.snapshot(self.shutter.time(u), with_normals)
+            snap = self.scene.snapshot(self.shutter.time(u), with_normals)
+        snap.fraction = float(u)
+        return snap
 
     def static_frame(self) -> Snapshot | None:
         """The centre snapshot when nothing changes over the shutter (geometry, visibility, camera
-        and lights identical at open, centre and close), else None: such a frame is one sharp render."""
+        and lights identical at open, centre and close, no fractional opacity), else None: such a
+        frame is one sharp render."""
+        if self.scene.any_fractional:   # presence varies over the samples even when nothing moves
+            return None
         if self.shutter.instant:
             return self.snapshot(0.5)
         a = self.probe_snapshots[0.5] = self.snapshot(0.5)
@@ -137,6 +142,11 @@ class FrameContext:
         sm = ShadowMaps(self.tables, scene.tri_vertices, scene.tri_object, sample_at,
                         self.shadow_options(), self.device, self.settings.threads, self.timings, self.counters)
         return sm if sm.active else None
+
+    def snapshot_fraction(self, snapshot: Snapshot) -> float:
+        """The shutter fraction of a snapshot (kept where it was taken: an instant shutter's
+        samples share one time code, but fractional opacity samples presence per fraction)."""
+        return snapshot.fraction if snapshot.fraction is not None else self.shutter_fraction(snapshot.time)
 
     def shutter_fraction(self, time_code: float) -> float:
         if self.shutter.instant:
@@ -220,7 +230,7 @@ class FrameContext:
             return None
         if self._velocities is not None and self._velocities[0] == snapshot.time:
             return self._velocities[1]
-        u = self.shutter_fraction(snapshot.time)
+        u = self.snapshot_fraction(snapshot)
         h = 0.25 / self.instants
         u2 = u + h if u + h <= 1.0 else u - h
         other = self.snapshot(u2, with_normals=False)
@@ -255,7 +265,7 @@ class FrameContext:
         sh = self.shading([snapshot])
         geo, bins = self.static_geometry([snapshot], 0, triangles, self.receiver_velocities(snapshot))
         view, b = self.view(bins), make_bins(bins, self.device)
-        u = self.shutter_fraction(snapshot.time)   # static entries ignore it; shadow maps shared over time use it
+        u = self.snapshot_fraction(snapshot)   # static entries ignore it; shadow maps shared over time use it
         dev = self.device
         count = self.num_pixels if pixels is None else len(pixels)
         listed = wp.array(pixels.astype(np.int32), dtype=int, device=dev) if pixels is not None else \
@@ -280,7 +290,7 @@ class FrameContext:
         sh = self.shading([snapshot])
         geo = make_geometry(self.tables, snapshot.positions[None], normals, tris, k, k,
                             self.receiver_velocities(snapshot))   # entry = triangle
-        u = self.shutter_fraction(snapshot.time)
+        u = self.snapshot_fraction(snapshot)
         with self.timed("render"):
             launch_pixels(shade_recorded, hits.pixels.shape[0],
                           lambda first, _n: [hits.view, geo, sh, u, weight, hits.pixels, first, hits.entries,

@@ -87,21 +87,29 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
         e = moving_bins.tile_entries[i]
         if box_rejects(moving_bins, e, x, y):
             continue
-        bounds = covered_time_bounds(geo, e, o, d)
+        still = geo.entry_k0[e] == geo.entry_k1[e]   # a still entry here has fractional opacity
+        bounds = wp.vec2(0.0, 1.0)
+        if not still:
+            bounds = covered_time_bounds(geo, e, o, d)
         if bounds[0] <= bounds[1]:
             vi = geo.tri_vertices[geo.entry_tri[e]]
             u0 = float(geo.entry_k0[e]) / float(geo.num_segments)
             u1 = float(geo.entry_k1[e]) / float(geo.num_segments)
+            if still:
+                u0 = 0.0
+                u1 = 1.0
             j0 = wp.clamp(int(wp.floor(bounds[0] * float(n))), 0, n - 1)
             j1 = wp.clamp(int(wp.floor(bounds[1] * float(n))), 0, n - 1)
             for j in range(j0, j1 + 1):
                 u = times[tid, j]
                 if u >= u0 and u <= u1:
-                    alpha = (u - u0) / (u1 - u0)
+                    alpha = float(0.0)
+                    if not still:
+                        alpha = (u - u0) / (u1 - u0)
                     hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
                                              entry_vertex(geo, e, vi[2], alpha), vi)
                     if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far and hit[1] < best_z[tid, j] \
-                            and not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3]):
+                            and not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3], u, x, y):
                         best_z[tid, j] = hit[1]
                         best_e[tid, j] = e
     moving_seen = int(0)

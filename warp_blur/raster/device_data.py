@@ -37,7 +37,7 @@ def make_view(proj: Projection, spatial: int, bins: TileBins | None, tile_size: 
 class TriangleTables:
     """Per-triangle data uploaded once per frame (topology, flags, materials, corner colours
     (3T, 3), and for textured scenes corner texture coordinates (3T, 2), levels of detail (T,),
-    and cutout tests (T, 2) with the textures they read (cutout.py))."""
+    and opacity tests (T, 3) with the textures they read (cutout.py))."""
 
     def __init__(self, tri_vertices: np.ndarray, tri_flags: np.ndarray, tri_material: np.ndarray,
                  corner_colors: np.ndarray, device: str, corner_uvs: np.ndarray | None = None,
@@ -52,8 +52,8 @@ class TriangleTables:
                                     wp.vec2, device)
         self.tri_lod = device_array((tri_lod if tri_lod is not None else empty).astype(np.float32), float, device)
         self.has_cutouts = tri_cutout is not None and bool((tri_cutout[:, 0] != -1).any())
-        cut = tri_cutout if self.has_cutouts else empty.reshape(0, 2)
-        self.tri_cutout = device_array(cut.astype(np.float32), wp.vec2, device)
+        cut = tri_cutout if self.has_cutouts else empty.reshape(0, 3)
+        self.tri_cutout = device_array(cut.astype(np.float32), wp.vec3, device)
         self.textures = texture_arrays(textures if self.has_cutouts else None, device)
         self.device = device
 

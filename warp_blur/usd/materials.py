@@ -229,9 +229,6 @@ def preview_surface_row(material: UsdShade.Material, frame: float,
     roughness = float(src["roughness"].value)
     opacity = float(src["opacity"].value)
     threshold = float(get("opacityThreshold"))
-    if threshold <= 0.0 and (opacity < 1.0 or src["opacity"].binding >= 0):
-        warn_once(f"opacity:{path}", f"material {path}: fractional opacity (opacityThreshold 0) is not supported "
-                  "(rendered opaque)")
     textured = any(s.binding >= 0 for s in src.values()) or src["diffuseColor"].primvar is not None
     specular_workflow = bool(int(get("useSpecularWorkflow")))
     metallic = float(np.clip(src["metallic"].value, 0.0, 1.0))
@@ -305,15 +302,25 @@ class MaterialTable:
         return np.stack(self.rows).astype(np.float32)
 
     def cutouts(self) -> np.ndarray:
-        """(M, 2) float32 per material: its cutout test (kernels/cutout.py): (opacity binding, or
-        -1 none / -2 hidden everywhere, opacityThreshold). USD masks where opacityThreshold > 0:
-        points with opacity below it are not there, the rest are opaque."""
+        """(M, 3) float32 per material: its opacity test (kernels/cutout.py): (code, threshold,
+        constant opacity) with code -1 none (opaque), -2 hidden everywhere, -3 a constant
+        opacity, else the binding of a textured opacity. USD masks where opacityThreshold > 0
+        (points below it are not there, the rest opaque); with threshold 0, opacity < 1 (or
+        textured) is fractional."""
         a = self.array()
-        threshold = a[:, COL_OPACITY_THRESHOLD]
-        binding = a[:, COL_BINDINGS + 4]
-        code = np.where(binding >= 0, binding, np.where(a[:, 11] < threshold, -2.0, -1.0))
-        code = np.where(threshold > 0, code, -1.0)
-        return np.stack([code, threshold], axis=1).astype(np.float32)
+        threshold, binding, opacity = a[:, COL_OPACITY_THRESHOLD], a[:, COL_BINDINGS + 4], a[:, 11]
+        mask = threshold > 0
+        fractional = self.fractional()
+        code = np.full(len(a), -1.0)
+        code = np.where(mask & (binding >= 0), binding, code)
+        code = np.where(mask & (binding < 0) & (opacity < threshold), -2.0, code)
+        code = np.where(fractional, np.where(binding >= 0, binding, -3.0), code)
+        return np.stack([code, threshold, np.clip(opacity, 0.0, 1.0)], axis=1).astype(np.float32)
+
+    def fractional(self) -> np.ndarray:
+        """(M,) bool: the material's opacity is fractional (threshold 0, opacity < 1 or textured)."""
+        a = self.array()
+        return (a[:, COL_OPACITY_THRESHOLD] <= 0) & ((a[:, COL_BINDINGS + 4] >= 0) | (a[:, 11] < 1.0))
 
     def emissive_only(self) -> np.ndarray:
         """(M,) bool: radiance cannot depend on lights (black diffuse and specular)."""

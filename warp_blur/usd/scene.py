@@ -83,6 +83,7 @@ class Snapshot:
     tri_visible: np.ndarray
     lights: np.ndarray
     cam_from_world: np.ndarray
+    fraction: float | None = None   # the shutter fraction it was taken at (FrameContext.snapshot)
 
 
 def _grey_corners(n: int) -> np.ndarray:
@@ -471,8 +472,12 @@ class Scene:
         self.tri_object = cat(objects, (0,), np.int32)   # (T,) prim instance of each triangle
         self.material_table = self.materials.array()
         cut = self.materials.cutouts()
-        # (T, 2) cutout test per triangle (kernels/cutout.py), or None when no material masks
+        # (T, 3) opacity test per triangle (kernels/cutout.py), or None when every material is opaque;
+        # (T,) triangles of fractional opacity (present at a fraction of each pixel's time samples)
         self.tri_cutout = cut[self.tri_material] if (cut[:, 0] != -1).any() and len(self.tri_material) else None
+        self.tri_fractional = self.materials.fractional()[self.tri_material] if len(self.tri_material) \
+            else np.zeros(0, bool)
+        self.any_fractional = bool(self.tri_fractional.any())
         self.any_smooth = bool((self.tri_flags & FLAG_SMOOTH).any())
 
     @property

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from ...kernels.cutout import cutout_hides, has_cutout
+from ...kernels.cutout import cutout_hides, has_cutout, is_fractional
 from ...kernels.dome import dome_along
 from ...kernels.kernel_types import Bins, Geometry, Shading, View
 from ...kernels.raster import add_pixel, box_rejects, pixel_tile
@@ -76,13 +76,14 @@ def emit_pieces(e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: float, s_b: floa
 
 
 @wp.func
-def emit_visible(geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: float, s_b: float, limit: int,
-                 base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int),
-                 occ: wp.array2d(dtype=float), row: int, g: int, whole: int) -> int:
-    """emit_pieces, except that a moving cutout entry's piece (kernels/cutout.py) is first cut at
-    the time slots (geo.cutout_slots per shutter), each slot's part kept only where the point hit
-    at the slot's centre (clamped into the piece) is not cut out, and the kept runs emitted: the
-    mask is point-sampled at the instants of accumulation with that many instants."""
+def emit_visible(geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, sx: float, sy: float, s_a: float,
+                 s_b: float, limit: int, base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
+                 iv_e: wp.array(dtype=int), occ: wp.array2d(dtype=float), row: int, g: int, whole: int) -> int:
+    """emit_pieces, except that the piece of an entry with an opacity test (kernels/cutout.py: a
+    moving cutout, or any fractional opacity) is first cut at the time slots (geo.cutout_slots
+    per shutter), each slot's part kept only where the point hit at the slot's centre (clamped
+    into the piece) is there for the sample at (sx, sy), and the kept runs emitted: the opacity is
+    point-sampled at the instants of accumulation with that many instants."""
     tri = geo.entry_tri[e]
     du = m.u1 - m.u0
     if not has_cutout(geo, tri) or du <= 0.0:
@@ -101,7 +102,7 @@ def emit_visible(geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: 
             s_c = (wp.clamp((float(k) + 0.5) / r, lo, hi) - m.u0) / du
             hit = plane_hit(o, d, m.a0 + s_c * (m.a1 - m.a0), m.b0 + s_c * (m.b1 - m.b0), m.c0 + s_c * (m.c1 - m.c0))
             s_lo = wp.max(s_a, (lo - m.u0) / du)
-            if cutout_hides(geo, tri, hit[2], hit[3]):
+            if cutout_hides(geo, tri, hit[2], hit[3], m.u0 + s_c * du, sx, sy):
                 if run >= 0.0 and s_lo > run:
                     kept += emit_pieces(e, m, o, d, run, s_lo, limit, base + kept, iv_t, iv_z, iv_e, occ, row, g,
                                         whole)
@@ -114,13 +115,14 @@ def emit_visible(geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: 
 
 
 @wp.func
-def emit_clipped(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: float, s_b: float, may_clip: int,
+def emit_clipped(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, sx: float, sy: float, s_a: float,
+                 s_b: float, may_clip: int,
                  limit: int, base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
                  iv_e: wp.array(dtype=int), fallbacks: wp.array(dtype=int), occ: wp.array2d(dtype=float), row: int,
                  g: int, whole: int) -> int:
     """Emit the part of a covered piece inside the clipping range (sampled when it may cross)."""
     if may_clip == 0:
-        return emit_visible(geo, e, m, o, d, s_a, s_b, limit, base, iv_t, iv_z, iv_e, occ, row, g, whole)
+        return emit_visible(geo, e, m, o, d, sx, sy, s_a, s_b, limit, base, iv_t, iv_z, iv_e, occ, row, g, whole)
     wp.atomic_add(fallbacks, 0, 1)
     count = int(0)
     prev_s = s_a
@@ -141,20 +143,21 @@ def emit_clipped(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp
             if prev_in:
                 # leaving the range: keep [start, lo] (the inside end of the bracket)
                 if lo > start:
-                    count += emit_visible(geo, e, m, o, d, start, lo, limit, base + count, iv_t, iv_z, iv_e, occ, row, g,
+                    count += emit_visible(geo, e, m, o, d, sx, sy, start, lo, limit, base + count, iv_t, iv_z, iv_e, occ, row, g,
                                          whole)
             else:
                 start = hi
         prev_in = now_in
         prev_s = s
     if prev_in and s_b > start:
-        count += emit_visible(geo, e, m, o, d, start, s_b, limit, base + count, iv_t, iv_z, iv_e, occ, row, g,
+        count += emit_visible(geo, e, m, o, d, sx, sy, start, s_b, limit, base + count, iv_t, iv_z, iv_e, occ, row, g,
                               whole)
     return count
 
 
 @wp.func
-def entry_intervals(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, limit: int, base: int,
+def entry_intervals(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, sx: float, sy: float,
+                    limit: int, base: int,
                     iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int),
                     fallbacks: wp.array(dtype=int), occ: wp.array2d(dtype=float), row: int, g: int,
                     whole: int) -> int:
@@ -164,7 +167,11 @@ def entry_intervals(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d:
     if geo.entry_k0[e] == geo.entry_k1[e]:
         # static entry: covered for the whole shutter or never
         hit = intersect_triangle(o, d, m.a0, m.b0, m.c0, vi)
-        if hit[0] == 0.0 or not in_range(view, hit[1]) or cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3]):
+        if hit[0] == 0.0 or not in_range(view, hit[1]):
+            return 0
+        if is_fractional(geo, geo.entry_tri[e]):   # there in some time slots
+            return emit_visible(geo, e, m, o, d, sx, sy, 0.0, 1.0, limit, base, iv_t, iv_z, iv_e, occ, row, g, whole)
+        if cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3], 0.5, sx, sy):
             return 0
         return emit_pieces(e, m, o, d, 0.0, 1.0, limit, base, iv_t, iv_z, iv_e, occ, row, g, whole)
     a0, b0, c0, da, db, dc = eye_relative(m, o)
@@ -181,7 +188,7 @@ def entry_intervals(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d:
             s_next = next_breakpoint(ra, rb, rc, s_prev)
             sm = 0.5 * (s_prev + s_next)
             if piece_covered(ca, cb, cc, dga, dgb, dgc, a0, da, b0, db, c0, dc, vi, sm, 0) != 0:
-                count += emit_clipped(view, geo, e, m, o, d, s_prev, s_next, may_clip, limit, base + count, iv_t, iv_z,
+                count += emit_clipped(view, geo, e, m, o, d, sx, sy, s_prev, s_next, may_clip, limit, base + count, iv_t, iv_z,
                                       iv_e, fallbacks, occ, row, g, whole)
             s_prev = s_next
     return count
@@ -200,7 +207,7 @@ def nearest_static(view: View, geo: Geometry, static_bins: Bins, tile: int, sx: 
         if not box_rejects(static_bins, e, sx, sy):
             hit = static_entry_hit(geo, e, o, d)
             if hit[0] > 0.0 and in_range(view, hit[1]) and hit[1] < z_static \
-                    and not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3]):
+                    and not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3], 0.5, sx, sy):
                 z_static = hit[1]
                 e_static = e
     return e_static, z_static
@@ -230,7 +237,7 @@ def moving_intervals(view: View, geo: Geometry, moving_bins: Bins, tile: int, st
             if all_hidden(occ, row, g, z_near):
                 break
             if may_show(view, m, z_static) and not entry_hidden(occ, row, g, whole, m.u0, m.u1, z_near):
-                n += entry_intervals(view, geo, e, m, o, d, limit, base + n, iv_t, iv_z, iv_e, fallbacks, occ, row,
+                n += entry_intervals(view, geo, e, m, o, d, sx, sy, limit, base + n, iv_t, iv_z, iv_e, fallbacks, occ, row,
                                      g, whole)
     return n
 
@@ -366,6 +373,6 @@ def fill_intervals(view: View, geo: Geometry, moving_bins: Bins, sub: wp.vec2, p
     n = moving_intervals(view, geo, moving_bins, pixel_tile(view, px, py), listed[pix] - 1, sx, sy, o, d, z_static,
                          limit, base, iv_t, iv_z, iv_e, fallbacks, occ, row, cull_slots, cull_whole)
     if e_static >= 0:
-        n += entry_intervals(view, geo, e_static, entry_moving(geo, e_static), o, d, limit, base + n, iv_t, iv_z,
+        n += entry_intervals(view, geo, e_static, entry_moving(geo, e_static), o, d, sx, sy, limit, base + n, iv_t, iv_z,
                              iv_e, fallbacks, occ, row, cull_slots, cull_whole)
     counts[k] = n

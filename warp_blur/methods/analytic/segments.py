@@ -273,7 +273,8 @@ def prepare_motion(ctx):
         plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.resolved_segment_error_px,
                            s.resolved_segment_time_error, ctx.probe_snapshots)
     geo = make_geometry(ctx.tables, plan.positions, plan.normals, plan.entry_tri, plan.entry_k0, plan.entry_k1)
-    static = plan.entry_k0 == plan.entry_k1
+    # fractional opacity changes with time slots, so its entries take the moving path even when still
+    static = (plan.entry_k0 == plan.entry_k1) & ~ctx.scene.tri_fractional[plan.entry_tri]
     near = entry_near_depth(plan.positions, ctx.scene.tri_vertices, plan.entry_tri, plan.entry_k0, plan.entry_k1)
     tile_bins = ctx.bin_groups(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1, [static, ~static],
                                order_key=near)
