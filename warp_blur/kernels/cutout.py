@@ -29,26 +29,11 @@ from .texture_lookup import binding_value
 PRESENCE_SLOTS = wp.constant(4096)
 
 
-@wp.func
-def presence_step(tri: int) -> float:
-    """One of eight irrational steps (fractional parts of square roots of primes and the golden
-    ratio), chosen by the triangle."""
-    k = tri % 8
-    if k == 0:
-        return 0.6180339887
-    if k == 1:
-        return 0.4142135624
-    if k == 2:
-        return 0.7320508076
-    if k == 3:
-        return 0.2360679775
-    if k == 4:
-        return 0.6457513111
-    if k == 5:
-        return 0.3166247904
-    if k == 6:
-        return 0.6055512755
-    return 0.1231056256
+#: Eight irrational steps (the golden ratio's and square roots' fractional parts), one per
+#: triangle (tri % 8), so that overlapping layers' presence sequences are independent.
+_vec8 = wp.types.vector(length=8, dtype=wp.float32)
+PRESENCE_STEPS = wp.constant(_vec8(0.6180339887, 0.4142135624, 0.7320508076, 0.2360679775, 0.6457513111,
+                                   0.3166247904, 0.6055512755, 0.1231056256))
 
 
 @wp.func
@@ -59,7 +44,7 @@ def presence_threshold(tri: int, sx: float, sy: float, u: float) -> float:
     state = wp.rand_init(tri, ix + iy * 8191)
     h = wp.randf(state)
     k = wp.clamp(int(u * float(PRESENCE_SLOTS)), 0, PRESENCE_SLOTS - 1)
-    x = h + presence_step(tri) * float(k)
+    x = h + PRESENCE_STEPS[tri % 8] * float(k)
     return x - wp.floor(x)
 
 
