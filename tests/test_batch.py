@@ -44,11 +44,14 @@ def test_killed_run_resumes_to_identical_frames(tmp_path, scene_path):
     out = tmp_path / "killed"
     proc = _cli("render", scene, "-o", str(out / "f.####.exr"), *common)
     deadline = time.time() + 120
-    while time.time() < deadline and len([f for f in os.listdir(out) if f.endswith(".exr")] if out.exists() else []) < 2:
+    def finished() -> list[str]:   # frames under their final names (a killed write leaves a .tmp- file)
+        return [f for f in os.listdir(out) if f.endswith(".exr") and not f.startswith(".tmp-")] if out.exists() else []
+
+    while time.time() < deadline and len(finished()) < 2:
         time.sleep(0.05)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
-    done = [f for f in os.listdir(out) if f.endswith(".exr")]
+    done = finished()
     assert 2 <= len(done) < 8, "the kill should land mid-range"
     for f in done:  # what exists under a final name is complete
         assert read_exr(str(out / f))["RGBA"].shape == (72, 96, 4)
