@@ -270,9 +270,10 @@ def test_authored_normals_shade_and_move_with_the_prim(scene_path, interpolation
     np.testing.assert_allclose(snap.normals, np.tile([[0.0, 0.7071068, 0.7071068]], (4, 1)), atol=1e-5)
 
 
-def test_hard_edged_face_varying_normals_keep_flat_facets(scene_path):
-    """Two quads sharing an edge whose corners there carry different normals (a hard edge): no one
-    normal per point, so the mesh keeps its flat facets."""
+def test_hard_edged_face_varying_normals_shade_each_side_with_its_own(scene_path):
+    """Two quads sharing an edge whose corners there carry different normals (a hard edge): the
+    edge's two points are copied, one per side, so every triangle corner shades with its face's
+    authored normal, and the copies sit exactly where the points are."""
     from authoring import add_camera, add_mesh, new_stage
     path = scene_path()
     stage = new_stage(path)
@@ -284,4 +285,13 @@ def test_hard_edged_face_varying_normals_keep_flat_facets(scene_path):
     pv.Set(Vt.Vec3fArray([left] * 4 + [right] * 4))
     stage.GetRootLayer().Save()
     _, _, scene = _scene(path)
-    assert not scene.any_smooth
+    assert scene.any_smooth
+    snap = scene.snapshot(1.0)
+    assert len(snap.positions) == 8                        # 6 points, the 2 on the hard edge twice
+    tris = scene.tri_vertices
+    corner_normals = snap.normals[tris]                    # (T, 3, 3)
+    x_centre = snap.positions[tris].mean(axis=1)[:, 0]     # left quad's triangles have x < 0
+    for t in range(len(tris)):
+        want = np.array([-0.6, 0.0, 0.8]) if x_centre[t] < 0 else np.array([0.6, 0.0, 0.8])
+        np.testing.assert_allclose(corner_normals[t], np.tile(want, (3, 1)), atol=1e-5)
+    assert len(np.unique(np.round(snap.positions, 9), axis=0)) == 6

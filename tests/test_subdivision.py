@@ -105,6 +105,32 @@ def test_infinitely_sharp_creases_keep_a_cube_a_cube():
     assert np.abs(smooth).max(axis=1).min() < 0.7
 
 
+def test_edges_still_sharp_at_the_rendered_level_shade_hard():
+    """A cube creased beyond the levels (10, 3 > 2) has its points copied per side of each crease,
+    so every smooth vertex normal is its own face's normal (flat faces, hard edges); copies of a
+    point are the same point; at sharpness 2 the creases end at this level and normals blend."""
+    from warp_blur.usd.normals import vertex_normals
+    from warp_blur.usd.subdivision import refined_triangles
+
+    def worst_normal(sharpness: float) -> tuple[float, np.ndarray, object]:
+        ref = refine(np.full(6, 4), np.concatenate(CUBE_FACES), 8, 2, {e: sharpness for e in CUBE_EDGES})
+        pts = ref.stencil @ CUBE_POINTS
+        tris = refined_triangles(ref)[0]
+        fn = np.cross(pts[tris[:, 1]] - pts[tris[:, 0]], pts[tris[:, 2]] - pts[tris[:, 0]])
+        fn /= np.linalg.norm(fn, axis=1, keepdims=True)
+        cos = np.einsum("tcj,tj->tc", vertex_normals(pts, tris)[tris], fn)
+        return float(np.abs(cos - 1.0).max()), pts, ref
+
+    for sharpness in (10.0, 3.0):
+        err, pts, ref = worst_normal(sharpness)
+        assert err < 1e-6
+        assert len(pts) > 98                                  # points on the creases were copied
+        np.testing.assert_allclose(np.abs(pts[:8]), 1.0)      # originals keep their indices
+        key = np.round(pts, 12)
+        assert len(np.unique(key, axis=0)) == 98              # ... and copies sit exactly on them
+    assert worst_normal(2.0)[0] > 0.1
+
+
 def test_semi_sharp_creases_blend_between_smooth_and_sharp():
     """A corner's refined position moves monotonically from the smooth limit towards the cage
     corner as the creases' sharpness grows (0.5 halfway in the first level's rule)."""

@@ -6,7 +6,8 @@ subdivision surface's normals come from its limit surface. Interpolations:
 - vertex / varying: one normal per point, as authored (indexed primvars flattened);
 - faceVarying: one per face corner; where every corner at a point carries the same normal (the
   usual export of a smooth mesh) they are one per point; a mesh with hard edges (corners of a
-  point that differ by more than HARD_EDGE_COS) keeps flat facets, with a warning;
+  point that differ by more than HARD_EDGE_COS) has its points copied once per distinct normal
+  (split_normals_fn), so each side of a hard edge keeps its own normals;
 - uniform / constant: flat facets (what they say).
 Normals move with the prim: the scene transforms them by each instant's inverse transpose.
 """
@@ -72,8 +73,8 @@ def authored_normals_fn(prim: Usd.Prim, t: Usd.TimeCode, npts: int) -> Callable[
     first = at(float(t.GetValue()) if not t.IsDefault() else 0.0)
     if first is None:
         if interp == UsdGeom.Tokens.faceVarying:
-            warn_once(f"normals:{path}", f"{path}: faceVarying normals with hard edges; rendering flat facets")
-        elif interp not in (UsdGeom.Tokens.uniform, UsdGeom.Tokens.constant):
+            return None                 # hard edges: split_normals_fn
+        if interp not in (UsdGeom.Tokens.uniform, UsdGeom.Tokens.constant):
             warn_once(f"normals:{path}", f"{path}: authored normals do not match the points; rendering flat facets")
         return None
     if attr.GetNumTimeSamples() <= 1:
@@ -84,6 +85,52 @@ def authored_normals_fn(prim: Usd.Prim, t: Usd.TimeCode, npts: int) -> Callable[
         return first if n is None else n
 
     return normals_at
+
+
+def split_normals_fn(prim: Usd.Prim, t: Usd.TimeCode, npts: int):
+    """For faceVarying normals with hard edges: (source (N',) point of each new point, new point of
+    each face corner (C,), time -> (N', 3) float64 normals), the mesh's points copied once per
+    distinct normal at them (HARD_EDGE_COS apart, grouped at time t); None otherwise."""
+    src = _source(prim)
+    if src is None or src[1] != UsdGeom.Tokens.faceVarying:
+        return None
+    get, _, attr = src
+    indices = np.asarray(UsdGeom.Mesh(prim).GetFaceVertexIndicesAttr().Get(t) or [], np.int64)
+    time0 = float(t.GetValue()) if not t.IsDefault() else 0.0
+    raw = get(time0)
+    values = None if raw is None else np.asarray(raw, np.float64).reshape(-1, 3)
+    if values is None or len(values) != len(indices) or not np.isfinite(values).all() or not len(indices):
+        return None
+    unit = values / np.maximum(np.linalg.norm(values, axis=1, keepdims=True), 1e-30)
+    # a corner joins the first group at its point whose normal is within HARD_EDGE_COS (points
+    # carry a handful of corners: a short loop over the few distinct normals each has)
+    group = np.full(len(indices), -1, np.int64)
+    order = np.argsort(indices, kind="stable")
+    starts = np.r_[0, np.nonzero(np.diff(indices[order]))[0] + 1, len(order)]
+    source: list[int] = []
+    for a, b in zip(starts[:-1], starts[1:]):
+        reps: list[int] = []
+        for c in order[a:b]:
+            for g, r in reps:
+                if unit[c] @ unit[r] >= HARD_EDGE_COS:
+                    group[c] = g
+                    break
+            else:
+                group[c] = len(source)
+                reps.append((len(source), c))
+                source.append(int(indices[c]))
+    source_arr = np.asarray(source, np.int64)
+    rep = np.zeros(len(source_arr), np.int64)
+    rep[group] = np.arange(len(indices))            # any corner of each group stands for it
+
+    def normals_at(time: float) -> np.ndarray:
+        raw_t = get(time) if attr.GetNumTimeSamples() > 1 else None
+        vals = values if raw_t is None else np.asarray(raw_t, np.float64).reshape(-1, 3)
+        if len(vals) != len(indices) or not np.isfinite(vals).all():
+            vals = values
+        return vals[rep]
+
+    return source_arr, group, normals_at
 
 
 def transform_normals(normals: np.ndarray, cam_from_local: np.ndarray) -> np.ndarray:

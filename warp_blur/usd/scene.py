@@ -21,7 +21,7 @@ from ..core.log import warn_once
 from .materials import MaterialTable
 from .curves import curves_unit_fields
 from .points import derived_points_fn, points_unit_fields
-from .normals import authored_normals_fn, transform_normals, vertex_normals, vertex_normals_since
+from .normals import authored_normals_fn, split_normals_fn, transform_normals, vertex_normals, vertex_normals_since
 from .subdivision import mesh_refinement, stage_level, refined_surface_primvars, refined_triangles
 from .stage import Shutter
 from .primvars import corner_primvar
@@ -320,8 +320,10 @@ class Scene:
             tris, face_of_tri, corner_weights = refined_triangles(ref)
             points_at = derived_points_fn(points_at, ref.stencil.__matmul__)
             npts = ref.stencil.shape[0]
-        normals_at = authored_normals_fn(prim, t, npts) if refined is None and not smooth and not skin else None
-        if normals_at is not None:
+        authored = refined is None and not smooth and not skin
+        normals_at = authored_normals_fn(prim, t, npts) if authored else None
+        split = split_normals_fn(prim, t, npts) if authored and normals_at is None else None
+        if normals_at is not None or split is not None:
             flags |= FLAG_SMOOTH
         tri_materials = self.materials.subset_materials(prim, t, material, face_of_tri)
         if refined is not None:
@@ -338,6 +340,11 @@ class Scene:
                 colors[rows] = c_m[rows]
                 if uv_m is not None:
                     uvs[rows] = uv_m[rows]
+        if split is not None and corners is not None:   # hard-edged faceVarying normals (normals.py)
+            source, point_of_corner, normals_at = split
+            tris = point_of_corner[corners].astype(tris.dtype)
+            points_at = derived_points_fn(points_at, lambda p, s=source: p[s])
+            npts = len(source)
         self.units.append(GeomUnit(
             path=path, prim=prim, local_tris=tris, num_points=npts, points_at=points_at,
             transforms_at=self._prim_transform_fn(xform_prim), num_instances=1,

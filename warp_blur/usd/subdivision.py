@@ -9,7 +9,9 @@ edges is a corner that stays put (USD's `edgeAndCorner`). Semi-sharp creases and
 DeRose et al. (1998): an edge of sharpness s ≥ 1 (boundaries always) takes the sharp rule (its
 midpoint), 0 < s < 1 blends smooth and sharp by s, and its halves carry s − 1 to the next level; a
 vertex on two creased edges follows the crease curve, on three or more (or with a corner
-sharpness) stays put, blended by their mean sharpness below 1. Meshes with holes, a left-handed
+sharpness) stays put, blended by their mean sharpness below 1. Edges still sharp after the last
+level (sharpness above the level count) shade hard: their points are copied per side, so smooth
+normals do not blend across them. Meshes with holes, a left-handed
 orientation or non-manifold edges are not refined (their cage is rendered, as before), nor are
 point-instancer prototypes and skinned meshes. The level is one for the
 stage: the highest (up to MAX_LEVEL) at which all its subdivision meshes together stay within
@@ -247,7 +249,51 @@ def refine(counts: np.ndarray, indices: np.ndarray, num_points: int, levels: int
         level += 1
     if level == 0:
         return None
+    if creases:                       # edges still sharp at this level: hard shading across them
+        source, quads = split_at_creases(quads, creases, n)
+        stencil = stencil[source]
     return Refinement(stencil, quads, parent, weights, level)
+
+
+def split_at_creases(quads: np.ndarray, creases: dict, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(source point (N'',), quads (F', 4)) with each of the n points copied once per fan of quads
+    around it that its crease edges ({(a, b) with a < b: sharpness > 0}) separate, so smooth vertex
+    normals stay on each side of a crease (hard shading, as the limit surface has there). The copies
+    are the same point (same stencil row): positions stay bit-identical, the mesh watertight."""
+    from scipy.sparse import csgraph
+    nq = len(quads)
+    corner = np.arange(nq * 4).reshape(nq, 4)
+    a, b = quads, np.roll(quads, -1, axis=1)                       # quad edge i runs a[:, i] -> b[:, i]
+    lo, hi = np.minimum(a, b).ravel(), np.maximum(a, b).ravel()
+    key = lo * np.int64(n) + hi
+    sharp_keys = np.array([k0 * n + k1 for (k0, k1), s in creases.items() if s > 0.0], np.int64)
+    smooth_edge = ~np.isin(key, sharp_keys)
+    # the corners at each end of edge i: corner i (at a) and corner i+1 (at b)
+    at_a, at_b = corner.ravel(), np.roll(corner, -1, axis=1).ravel()
+    order = np.argsort(key, kind="stable")
+    k_sorted = key[order]
+    pair = np.nonzero(k_sorted[1:] == k_sorted[:-1])[0]           # interior edges: two quads share the key
+    e1, e2 = order[pair], order[pair + 1]
+    keep = smooth_edge[e1]
+    e1, e2 = e1[keep], e2[keep]
+    # opposite orientation in the two quads: e1's a-end is e2's b-end
+    same_a = a.ravel()[e1] == a.ravel()[e2]
+    u = np.concatenate([at_a[e1], at_b[e1]])
+    v = np.concatenate([np.where(same_a, at_a[e2], at_b[e2]), np.where(same_a, at_b[e2], at_a[e2])])
+    graph = sparse.coo_matrix((np.ones(len(u)), (u, v)), shape=(nq * 4, nq * 4))
+    _, label = csgraph.connected_components(graph, directed=False)
+    _, first, fan = np.unique(label, return_index=True, return_inverse=True)
+    fan_point = quads.ravel()[first]                              # (fans,) the point each fan is at
+    # each point's first fan keeps its index, the others are appended (a mesh without creases, or
+    # a point on none, is numbered as before)
+    order = np.lexsort((np.arange(len(fan_point)), fan_point))
+    is_first = np.r_[True, fan_point[order][1:] != fan_point[order][:-1]]
+    index = np.empty(len(fan_point), np.int64)
+    index[order[is_first]] = fan_point[order[is_first]]
+    extra = order[~is_first]
+    index[extra] = n + np.arange(len(extra))
+    source = np.concatenate([np.arange(n), fan_point[extra]]).astype(np.int64)
+    return source, index[fan].reshape(nq, 4)
 
 
 def refined_triangles(ref: Refinement) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
