@@ -179,3 +179,69 @@ def test_a_moving_translucent_quad_blurs_alike_in_every_method(scene_path):
     opaque = wb.render(_translucent_stage(scene_path(), [(WHITE, 1.0), (RED, 1.0)], moving=True),
                        method="accumulation", samples=128, **kw).rgba
     assert rmse(opaque, ref) > 0.05, "the translucency shows"
+
+
+def _display_opacity_stage(path: str, interpolation: str, values, threshold: float = 0.0) -> str:
+    """A 4×2 emissive white quad (x from -2 to 2, two faces split at x = 0) whose material's
+    opacity reads the primvar displayOpacity (a UsdPrimvarReader_float), authored `values` with
+    `interpolation`, over the black dome."""
+    stage = new_stage(path)
+    add_camera(stage, translate=(0, 0, 8), focal=24.0, haperture=36.0, vaperture=24.0, shutter=(0.0, 0.0))
+    mat = add_material(stage, "/World/Looks/M", emissive=WHITE)
+    surface = UsdShade.Shader.Get(stage, "/World/Looks/M/PreviewSurface")
+    reader = UsdShade.Shader.Define(stage, "/World/Looks/M/Opacity")
+    reader.CreateIdAttr("UsdPrimvarReader_float")
+    reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set("displayOpacity")
+    reader.CreateInput("fallback", Sdf.ValueTypeNames.Float).Set(1.0)
+    surface.GetInput("opacity").ConnectToSource(reader.ConnectableAPI(), "result")
+    if threshold:
+        surface.CreateInput("opacityThreshold", Sdf.ValueTypeNames.Float).Set(threshold)
+    mesh = add_mesh(stage, "/World/Quad", [(-2, -1, 0), (0, -1, 0), (2, -1, 0), (-2, 1, 0), (0, 1, 0), (2, 1, 0)],
+                    [4, 4], [0, 1, 4, 3, 1, 2, 5, 4], material=mat)
+    mesh.CreateDisplayOpacityPrimvar(interpolation).Set(list(values))
+    stage.GetRootLayer().Save()
+    return path
+
+
+def _column_alpha(rgba: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(world x of each column inside the quad, mean alpha down those columns over the quad's
+    rows): the camera sees 12 units across 96 columns, the quad spans columns 32..63."""
+    cols = np.arange(33, 63)
+    return (cols + 0.5) / 8.0 - 6.0, rgba[26:38, cols, 3].mean(axis=0)
+
+
+@pytest.mark.parametrize("method,samples,bands,tol", [("accumulation", 64, 5, 0.04), ("stochastic", 64, 5, 0.05),
+                                                      ("analytic", 16, 5, 0.04), ("velocity", 8, 2, 0.12)])
+def test_display_opacity_in_every_interpolation(scene_path, method, samples, bands, tol):
+    """displayOpacity read through the material's primvar reader: vertex values 0 at x = -2 and 1
+    at x = 2 give coverage (x + 2) / 4 across the quad; uniform (0.25, 0.75) one per face;
+    faceVarying as vertex; constant 0.4 everywhere; with opacityThreshold 0.5 the vertex ramp
+    masks to x > 0 (opaque). Means of alpha over bands of columns (fractional presence dithers per
+    pixel; the velocity method's one instant is a coin flip per pixel, σ 0.5/√180 over its wider
+    bands, so its tolerance is 3σ)."""
+    kw = dict(frame=1, method=method, samples=samples, resolution=(W, H))
+    ramp = [0.0, 0.5, 1.0, 0.0, 0.5, 1.0]
+    cases = [("vertex", ramp, 0.0, lambda x: (x + 2) / 4),
+             ("faceVarying", [0.0, 0.5, 0.5, 0.0, 0.5, 1.0, 1.0, 0.5], 0.0, lambda x: (x + 2) / 4),
+             ("uniform", [0.25, 0.75], 0.0, lambda x: np.where(x < 0, 0.25, 0.75)),
+             ("constant", [0.4], 0.0, lambda x: np.full_like(x, 0.4)),
+             ("vertex", ramp, 0.5, lambda x: (x > 0).astype(float))]
+    for interpolation, values, threshold, want in cases:
+        x, alpha = _column_alpha(wb.render(_display_opacity_stage(scene_path(), interpolation, values, threshold),
+                                           **kw).rgba)
+        err = (alpha - want(x)).reshape(bands, -1).mean(axis=1)   # bands of columns (12 rows each)
+        assert np.abs(err).max() < tol, (interpolation, threshold, err)
+
+
+def test_display_opacity_on_the_display_color_material(scene_path):
+    """A prim with no material renders displayColor with displayOpacity (USD's fallback surface):
+    constant 0.3 covers 30% of the quad, a quad without it is opaque."""
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage, translate=(0, 0, 8), focal=24.0, haperture=36.0, vaperture=24.0, shutter=(0.0, 0.0))
+    add_quad(stage, "/World/Quad", 2.0, 1.0).CreateDisplayOpacityPrimvar("constant").Set([0.3])
+    add_quad(stage, "/World/Far", 0.5, 0.5, translate=(4.0, 0, 0))
+    stage.GetRootLayer().Save()
+    rgba = wb.render(path, frame=1, method="accumulation", samples=64, resolution=(W, H)).rgba
+    assert abs(rgba[26:38, 33:63, 3].mean() - 0.3) < 0.03
+    np.testing.assert_allclose(rgba[30:34, 81:83, 3], 1.0)

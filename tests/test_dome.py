@@ -101,3 +101,64 @@ def test_every_method_renders_a_textured_dome_alike(scene_path):
         assert rmse(got, ref) < tol, method
     lit = ref[ref[..., 3] > 0.999, :2]   # the map has no blue
     assert len(lit) and lit.min() > 0.05, "the dome lights the diffuse quad"
+
+
+def _sine_map(folder: str, w: int = 512, h: int = 64, periods: int = 8) -> tuple[str, np.ndarray]:
+    """A latlong map whose red is 0.5 + 0.5 sin(2 pi periods s) (8-bit sRGB), and its linear row."""
+    s = (np.arange(w) + 0.5) / w
+    red = np.round((0.5 + 0.5 * np.sin(2 * np.pi * periods * s)) * 255).astype(np.uint8)
+    img = np.zeros((h, w, 3), np.uint8)
+    img[..., 0] = red[None, :]
+    Image.fromarray(img).save(os.path.join(folder, "sine_dome.png"))
+    return "./sine_dome.png", srgb_to_linear(red / 255.0)
+
+
+def _turning_dome(path: str, w: int) -> tuple[str, np.ndarray]:
+    """(stage, centre-row red it must show): the camera yaws 100° -> 140° over the shutter in front
+    of the sine dome; the expected row is the mean over 256 instants of the map (bilinear, linear
+    texels) at USD's camera ray directions (Gf.Frustum.ComputePickRay)."""
+    _dome_stage(path, 0.0, 0.0)
+    image, row = _sine_map(os.path.dirname(path))
+    stage = Usd.Stage.Open(path)
+    UsdLux.DomeLight(stage.GetPrimAtPath("/World/Dome")).GetTextureFileAttr().Set(Sdf.AssetPath(image))
+    rot = stage.GetPrimAtPath("/World/Cam").GetAttribute("xformOp:rotateY")
+    rot.Clear()
+    rot.Set(100.0, Usd.TimeCode(0.5))
+    rot.Set(140.0, Usd.TimeCode(1.5))
+    stage.GetRootLayer().Save()
+    cam = UsdGeom.Camera(stage.GetPrimAtPath("/World/Cam"))
+    want = np.zeros(w)
+    for t in 0.5 + (np.arange(256) + 0.5) / 256:
+        frustum = cam.GetCamera(Usd.TimeCode(float(t))).frustum
+        for x in range(w):
+            d = np.array(frustum.ComputePickRay(Gf.Vec2d(2 * (x + 0.5) / w - 1, 0.0)).direction)
+            texel = ((0.5 - np.arctan2(d[0], d[2]) / (2 * np.pi)) % 1.0) * len(row) - 0.5
+            i0, f = int(np.floor(texel)), texel - np.floor(texel)
+            want[x] += ((1 - f) * row[i0 % len(row)] + f * row[(i0 + 1) % len(row)]) / 256
+    return path, want
+
+
+@pytest.mark.parametrize("method,kw,tol", [("accumulation", {"samples": 64}, 0.002),
+                                           ("stochastic", {"samples": 64}, 0.002),
+                                           ("analytic", {}, 0.002),
+                                           ("analytic", {"time_bits": 0}, 0.002)])
+def test_a_turning_camera_sweeps_the_dome(scene_path, method, kw, tol):
+    """The camera yaws 40° over the shutter in front of a dome whose red is a sine of longitude
+    (period 45°): each pixel's background is the map averaged along the arc its ray sweeps
+    (_turning_dome's closed form); the sharp centre instant is far from it."""
+    w = 33
+    path, want = _turning_dome(scene_path(), w)
+    got = wb.render(path, frame=1, method=method, resolution=(w, w), **kw).rgba[16, :, 0]
+    sharp = wb.render(path, frame=1, method=method, resolution=(w, w), shutter=(0.0, 0.0), **kw).rgba[16, :, 0]
+    assert np.abs(got - want).max() < tol, (method, np.round(got - want, 4))
+    assert np.abs(sharp - want).max() > 0.1
+
+
+def test_the_velocity_method_blurs_the_dome_with_the_camera_turn(scene_path):
+    """Where nothing is hit, the velocity method's motion is the camera's turn of the pixel's ray
+    direction: its centre row is clearly nearer the swept dome than its sharp instant is."""
+    w = 33
+    path, want = _turning_dome(scene_path(), w)
+    got = wb.render(path, frame=1, method="velocity", resolution=(w, w)).rgba[16, :, 0]
+    sharp = wb.render(path, frame=1, method="velocity", resolution=(w, w), shutter=(0.0, 0.0)).rgba[16, :, 0]
+    assert rmse(got, want) < 0.75 * rmse(sharp, want)

@@ -15,6 +15,7 @@ instant dithers).
 
 Each triangle's test is geo.tri_cutout[t] = (code, threshold, opacity): code -1 no test, -2
 hidden everywhere (a constant opacity below the threshold), -3 constant opacity (fractional),
+-4 the corners' opacity primvar (displayOpacity; geo.tri_alpha[t]) interpolated at the point,
 else the texture binding of `opacity`, looked up at the point's texture coordinates with the
 triangle's level of detail; threshold > 0 masks, else the opacity is fractional.
 """
@@ -61,6 +62,9 @@ def cutout_hides(geo: Geometry, tri: int, wb: float, wc: float, u: float, sx: fl
     if code == -2:
         return True
     opacity = c[2]
+    if code == -4:
+        a = geo.tri_alpha[tri]
+        opacity = (1.0 - wb - wc) * a[0] + wb * a[1] + wc * a[2]
     if code >= 0:
         uv = wp.vec2(0.0, 0.0)
         lod = float(-30.0)

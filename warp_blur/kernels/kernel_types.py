@@ -58,6 +58,7 @@ class Geometry:
     velocities: wp.array(dtype=wp.vec3)     # (V,) per-shutter vertex velocities of static entries, or (1,) unused
     has_velocities: int                     # 1 when `velocities` holds them (a sharp instant whose shadow maps are at other instants)
     tri_cutout: wp.array(dtype=wp.vec3)     # (T,) opacity test (code, threshold, opacity; cutout.py), or (1,) unused
+    tri_alpha: wp.array(dtype=wp.vec3)      # (T,) corner opacities (code -4, cutout.py), or (1,) unused
     has_cutouts: int                        # 1 when some triangle has a cutout test (cutout.py)
     cutout_slots: int                       # time slots per shutter at which the analytic method tests a moving cutout
     tex: Textures                           # the frame's textures (for cutout opacity)
@@ -81,7 +82,9 @@ class Shading:
     light_segments: int
     dome: wp.vec3                            # uniform dome radiance (a textured dome's mean)
     dome_binding: int                        # textured dome: its map's texture binding (dome.py), else -1
-    dome_rot: wp.mat33                       # camera-space directions -> dome directions
+    dome_rot: wp.mat33                       # camera-space directions -> dome directions (shutter centre)
+    dome_rots: wp.array(dtype=wp.mat33)      # (R+1,) dome_rot at R+1 even knots over the shutter (a turning camera)
+    dome_segments: int                       # R: 0 when the camera's orientation holds (dome_rot throughout)
     dome_sh: wp.array(dtype=wp.vec3)         # (9,) SH coefficients of the dome's irradiance (dome space)
     dome_lod: float                          # log2 of a pixel's angle / 2 pi (the map's mip level)
     shadow_maps: wp.array4d(dtype=float)

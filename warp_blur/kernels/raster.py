@@ -10,7 +10,7 @@ from __future__ import annotations
 import warp as wp
 
 from .cutout import cutout_hides
-from .dome import dome_along
+from .dome import dome_at
 from .kernel_types import Bins, Geometry, Shading, View
 from .rays import entry_alpha, entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin
 from .shading import shade_entry_hit
@@ -120,7 +120,7 @@ def sharp_pixel(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, we
                 color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
                 cover = cover + 1.0
             else:
-                color = color + dome_along(sh, d)
+                color = color + dome_at(sh, d, u)
     add_pixel(rgba, pix, weight / float(n * n), color, cover)
 
 
@@ -174,7 +174,7 @@ def shade_recorded(view: View, geo: Geometry, sh: Shading, u: float, weight: flo
             else:
                 x = float(px) + (float(sx) + 0.5) / float(n)
                 y = float(py) + (float(sy) + 0.5) / float(n)
-                color = color + dome_along(sh, pixel_ray_direction(view, x, y))
+                color = color + dome_at(sh, pixel_ray_direction(view, x, y), u)
     add_pixel(rgba, pix, weight / float(n * n), color, cover)
 
 
@@ -226,7 +226,7 @@ def render_sharp_depth_motion(view: View, geo: Geometry, sh: Shading, bins: Bins
     pix = first_pixel + wp.tid()
     o, d = centre_ray(view, pix)
     e, alpha, hit = nearest_at_centre(view, geo, bins, pix, o, d, u)
-    color = dome_along(sh, d)
+    color = dome_at(sh, d, u)
     cover = float(0.0)
     if e >= 0:
         color = shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)

@@ -28,6 +28,9 @@ from ..usd.textures import texture_lod
 #: Shutter fractions probed to decide that nothing moves. Open, centre and close alone alias
 #: (a full turn per half shutter looks static); the irregular extra probes make that unlikely.
 #: They lie on the motion planner's default grid (k/128), so it reuses these snapshots.
+#: camera-to-dome rotations over the shutter for a textured dome (read linearly between them):
+#: 16 segments keep a 90° turn within 6° per segment
+DOME_KNOTS = 17
 MOTION_PROBES = (0.0, 16 / 128, 32 / 128, 64 / 128, 79 / 128, 96 / 128, 1.0)
 
 
@@ -83,7 +86,7 @@ class FrameContext:
                 lod = texture_lod(self.proj, centre.positions, s.tri_vertices, s.corner_uvs)
             self._tables = TriangleTables(s.tri_vertices, s.tri_flags, s.tri_material, s.corner_colors, self.device,
                                           s.corner_uvs if s.textured else None, lod, s.tri_cutout,
-                                          s.materials.textures)
+                                          s.materials.textures, s.tri_alpha)
         return self._tables
 
     def snapshot(self, u: float, with_normals: bool = True) -> Snapshot:
@@ -170,8 +173,9 @@ class FrameContext:
                 with self.timed("shadow_total"):
                     shadows = self._instant_shadows.data_for_instant(self.shutter_fraction(snapshots[0].time),
                                                                      self.instants, self.settings.shadow_times)
+        one = self.snapshot_fraction(snapshots[0]) if len(snapshots) == 1 else None
         sh = make_shading(self.scene.material_table, lights, self.scene.dome, self.device, shadows,
-                          self.shadow_options(), self.scene.materials.textures, self.dome_frame())
+                          self.shadow_options(), self.scene.materials.textures, self.dome_frame(one))
         if len(snapshots) == 1:
             self._shading_last = (snapshots[0].time, sh)
         return sh
@@ -197,15 +201,22 @@ class FrameContext:
         self.counters["bin_pairs"] = self.counters.get("bin_pairs", 0) + sum(b.num_pairs for b in out)
         return out
 
-    def dome_frame(self) -> tuple | None:
+    def dome_frame(self, fraction: float | None = None) -> tuple | None:
         """make_shading's textured dome for this frame (None: uniform or no dome): its binding,
-        camera-to-dome rotation at the shutter centre (a turning camera does not blur the map),
-        irradiance SH and the map's mip level from a pixel's angle."""
+        camera-to-dome rotations (at shutter fraction `fraction` for one sharp instant, else at
+        DOME_KNOTS even knots over the shutter, so a turning camera sweeps the map), irradiance SH
+        and the map's mip level from a pixel's angle."""
         dm = self.scene.dome_map
         if dm is None:
             return None
-        m3 = self.scene.cam_from_world(self.shutter.time(0.5))[:3, :3]
-        rot = (np.linalg.inv(m3) @ dm.rotation).T
+        fractions = [fraction] if fraction is not None else np.linspace(0.0, 1.0, DOME_KNOTS)
+        if self.shutter.instant:
+            fractions = [0.5]
+        rots = []
+        for u in fractions:
+            m3 = self.scene.cam_from_world(self.shutter.time(float(u)))[:3, :3]
+            rots.append((np.linalg.inv(m3) @ dm.rotation).T)
+        rot = np.stack(rots)
         x0, _y0, x1, _y1 = self.proj.window
         angle = (x1 - x0) / self.proj.width
         lod = -30.0 if self.proj.orthographic else float(np.log2(max(angle, 1e-12) / (2.0 * np.pi)))

@@ -17,7 +17,7 @@ import warp as wp
 
 from .frame import FrameContext
 from ..kernels.cutout import cutout_hides
-from ..kernels.dome import dome_along
+from ..kernels.dome import dome_at, dome_over
 from ..kernels.kernel_types import Bins, Geometry, Shading, View
 from ..core.parallel import launch_pixels
 from ..kernels.raster import add_pixel, box_rejects, pixel_tile
@@ -129,7 +129,7 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
                                          static_entry_hit(geo, e_static, o, d))
             cover = 1.0
         else:
-            color = dome_along(sh, d)
+            color = dome_over(sh, d, 0.0, 1.0)
     else:
         for j in range(n):
             e = best_e[tid, j]
@@ -146,7 +146,7 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
                 color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
                 cover = cover + 1.0
             else:
-                color = color + dome_along(sh, d)
+                color = color + dome_at(sh, d, times[tid, j])
         color = color / float(n)
         cover = cover / float(n)
     add_pixel(rgba, pix, weight, color, cover)

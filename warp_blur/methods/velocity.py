@@ -103,7 +103,8 @@ def gather_blur(width: int, height: int, color: wp.array(dtype=wp.vec4), depth: 
 def camera_motion_from_depth(ctx: FrameContext, depth: np.ndarray, cfw_open: np.ndarray, cfw_center: np.ndarray,
                              cfw_close: np.ndarray) -> np.ndarray:
     """(H, W, 2) screen motion (pixels, open -> close) of static points seen at `depth`, from the
-    camera's motion alone: unproject with the centre camera, reproject with open and close."""
+    camera's motion alone: unproject with the centre camera, reproject with open and close (where
+    nothing is hit, the direction of the pixel's ray: the dome turns with the camera)."""
     proj = ctx.proj
     h, w = depth.shape
     ys, xs = np.mgrid[0:h, 0:w].astype(np.float64) + 0.5
@@ -113,11 +114,17 @@ def camera_motion_from_depth(ctx: FrameContext, depth: np.ndarray, cfw_open: np.
         p = np.stack([wx, wy, -z, np.ones_like(z)], -1)
     else:
         p = np.stack([wx * z, wy * z, -z, np.ones_like(z)], -1)
+    far = ~np.isfinite(depth)
+    if not proj.orthographic:
+        # nothing hit: the dome, infinitely far, moves with the camera's turn alone (a direction, w = 0)
+        p[far] = np.stack([wx[far], wy[far], -np.ones(far.sum()), np.zeros(far.sum())], -1)
     center_to_world = np.linalg.inv(cfw_center)
     p_open = (p @ (center_to_world @ cfw_open))[..., :3]
     p_close = (p @ (center_to_world @ cfw_close))[..., :3]
-    motion = proj.project(p_close) - proj.project(p_open)
-    motion[~np.isfinite(depth) | ~np.isfinite(motion).all(-1)] = 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        motion = proj.project(p_close) - proj.project(p_open)
+    behind = far & ((p_open[..., 2] >= 0) | (p_close[..., 2] >= 0))    # a turn of 90° or more
+    motion[~np.isfinite(motion).all(-1) | behind | (far & proj.orthographic)] = 0.0
     return motion
 
 

@@ -37,12 +37,12 @@ def make_view(proj: Projection, spatial: int, bins: TileBins | None, tile_size: 
 class TriangleTables:
     """Per-triangle data uploaded once per frame (topology, flags, materials, corner colours
     (3T, 3), and for textured scenes corner texture coordinates (3T, 2), levels of detail (T,),
-    and opacity tests (T, 3) with the textures they read (cutout.py))."""
+    and opacity tests (T, 3) with the textures and corner opacities (T, 3) they read (cutout.py))."""
 
     def __init__(self, tri_vertices: np.ndarray, tri_flags: np.ndarray, tri_material: np.ndarray,
                  corner_colors: np.ndarray, device: str, corner_uvs: np.ndarray | None = None,
                  tri_lod: np.ndarray | None = None, tri_cutout: np.ndarray | None = None,
-                 textures=None) -> None:
+                 textures=None, tri_alpha: np.ndarray | None = None) -> None:
         self.tri_vertices = device_array(tri_vertices.astype(np.int32), wp.vec3i, device)
         self.tri_flags = device_array(tri_flags.astype(np.int32), int, device)
         self.tri_material = device_array(tri_material.astype(np.int32), int, device)
@@ -55,6 +55,8 @@ class TriangleTables:
         cut = tri_cutout if self.has_cutouts else empty.reshape(0, 3)
         self.tri_cutout = device_array(cut.astype(np.float32), wp.vec3, device)
         self.textures = texture_arrays(textures if self.has_cutouts else None, device)
+        alpha = tri_alpha if self.has_cutouts and tri_alpha is not None else empty.reshape(0, 3)
+        self.tri_alpha = device_array(alpha.astype(np.float32), wp.vec3, device)
         self.device = device
 
 
@@ -78,6 +80,7 @@ def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.nda
     g.tri_material, g.tri_colors = tables.tri_material, tables.tri_colors
     g.tri_uvs, g.tri_lod = tables.tri_uvs, tables.tri_lod
     g.tri_cutout, g.has_cutouts, g.tex = tables.tri_cutout, int(tables.has_cutouts), tables.textures
+    g.tri_alpha = tables.tri_alpha
     g.cutout_slots = 256   # the analytic method sets its own (its time bits)
     g.entry_tri = device_array(entry_tri.astype(np.int32), int, dev)
     g.entry_k0 = device_array(entry_k0.astype(np.int32), int, dev)
@@ -142,17 +145,25 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
     """lights: (L+1, NL, LIGHT_WIDTH) tables at L+1 knots over the shutter; shadows: a
     shadows.layout.ShadowData (or None: no light casts shadows) with its ShadowOptions; textures:
     the frame's textures.TextureSet (None: none); dome_frame: a textured dome as
-    (binding, camera-to-dome rotation (3, 3) for column vectors, irradiance SH (9, 3), lod), or None."""
+    (binding, camera-to-dome rotations (R+1, 3, 3) for column vectors at even knots over the
+    shutter (one when it holds), irradiance SH (9, 3), lod), or None."""
     s = Shading()
     s.tex = texture_arrays(textures, device)
     if dome_frame is None:
         s.dome_binding, s.dome_rot, s.dome_lod = -1, wp.mat33(np.eye(3, dtype=np.float32)), 0.0
         s.dome_sh = _NO_DOME_SH.get(device) or _NO_DOME_SH.setdefault(device, wp.zeros(9, dtype=wp.vec3,
                                                                                           device=device))
+        rots = np.eye(3, dtype=np.float32)[None]
     else:
-        binding, rot, coeffs, lod = dome_frame
-        s.dome_binding, s.dome_rot, s.dome_lod = int(binding), wp.mat33(np.asarray(rot, np.float32)), float(lod)
+        binding, rots, coeffs, lod = dome_frame
+        rots = np.asarray(rots, np.float32).reshape(-1, 3, 3)
+        if (rots == rots[:1]).all():
+            rots = rots[:1]
+        centre = rots[len(rots) // 2] if len(rots) % 2 else 0.5 * (rots[len(rots) // 2 - 1] + rots[len(rots) // 2])
+        s.dome_binding, s.dome_rot, s.dome_lod = int(binding), wp.mat33(centre), float(lod)
         s.dome_sh = wp.array(np.ascontiguousarray(coeffs, np.float32), dtype=wp.vec3, device=device)
+    s.dome_rots = wp.array(np.ascontiguousarray(rots), dtype=wp.mat33, device=device)
+    s.dome_segments = len(rots) - 1
     s.materials = wp.array(np.ascontiguousarray(materials, np.float32), dtype=float, device=device)
     nl = lights.shape[1]
     lt = lights if nl else np.zeros((lights.shape[0], 1, lights.shape[2]), np.float32)

@@ -187,11 +187,11 @@ def curves_unit_fields(scene, prim: Usd.Prim, t: Usd.TimeCode) -> dict | None:
     colour_index = layout.indices[first_vertex, 1 if kind != "linear" else 0]
     colour_index = np.minimum(colour_index, n - 1)
     material, flags, blur = scene._common(prim, t)
-    colors, uvs = scene._surface_primvars(prim, t, material, np.repeat(colour_index[:, None], 3, axis=1),
+    colors, uvs, opacity = scene._surface_primvars(prim, t, material, np.repeat(colour_index[:, None], 3, axis=1),
                                          layout.curve_of_sample[first_vertex], None)
     return dict(
         path=path, prim=prim, local_tris=tris, num_points=2 * len(layout.curve_of_sample),
         points_at=derived_points_fn(control_at, lambda c: ribbon_vertices(sample_positions(layout, c, counts, wrap),
                                                                           widths, layout, towards_camera, right)),
-        transforms_at=scene._prim_transform_fn(prim), num_instances=1, corner_colors=colors, corner_uvs=uvs,
+        transforms_at=scene._prim_transform_fn(prim), num_instances=1, corner_colors=colors, corner_uvs=uvs, corner_opacity=opacity,
         material=material, flags=flags, blur_scale=blur, visibility_prims=[prim])

@@ -100,10 +100,13 @@ def _input_source(shader: UsdShade.Shader, name: str, frame: float, material_pat
     output = UsdShade.Output(attr).GetBaseName()
     if node_id == "UsdUVTexture" and name in _BOUND_INPUTS:
         return _texture_source(node, output, name, frame, material_path, textures)
-    if node_id in ("UsdPrimvarReader_float3", "UsdPrimvarReader_float4") and name in ("diffuseColor",):
+    readers = {"diffuseColor": ("UsdPrimvarReader_float3", "UsdPrimvarReader_float4"),
+               "opacity": ("UsdPrimvarReader_float",)}
+    if node_id in readers.get(name, ()):
         varname = str(_shader_input(node, "varname", frame, "") or "")
         if varname:
-            return _Source(FALLBACKS[name], primvar=varname)
+            return _Source(_finite(_shader_input(node, "fallback", frame, FALLBACKS[name]), name, material_path)
+                           if name == "opacity" else FALLBACKS[name], primvar=varname)
     fallback = _finite(_shader_input(node, "fallback", frame, FALLBACKS[name]), name, material_path) \
         if node_id and node_id.startswith("UsdPrimvarReader") else FALLBACKS[name]
     warn_once(f"connected:{material_path}:{name}",
@@ -202,10 +205,12 @@ def _finite(value, name: str, material_path: str):
 @dataclass
 class MaterialReads:
     """What a material needs from the prims it is bound to: the primvar of its texture
-    coordinates (None: untextured) and of its diffuse colour (None: not from a primvar)."""
+    coordinates (None: untextured), of its diffuse colour and of its opacity (None: not from a
+    primvar)."""
 
     st: str | None = None
     color: str | None = None
+    opacity: str | None = None
 
 
 def preview_surface_row(material: UsdShade.Material, frame: float,
@@ -253,7 +258,12 @@ def preview_surface_row(material: UsdShade.Material, frame: float,
     row[COL_OPACITY_THRESHOLD] = threshold
     row[COL_TEXTURED] = 1.0 if textured else 0.0
     st = next((s.st for s in src.values() if s.binding >= 0 and s.st), None)
-    return row, MaterialReads(st=st, color=src["diffuseColor"].primvar)
+    return row, MaterialReads(st=st, color=src["diffuseColor"].primvar, opacity=src["opacity"].primvar)
+
+
+#: kernels/cutout.py's code for a triangle whose opacity is its corners' opacity primvar
+#: (displayOpacity), interpolated at the hit (Geometry.tri_alpha)
+CODE_CORNER_OPACITY = -4.0
 
 
 class MaterialTable:
@@ -263,7 +273,7 @@ class MaterialTable:
         self.frame = frame
         self.rows: list[np.ndarray] = [display_color_row()]
         self.names: list[str] = ["<displayColor>"]
-        self.reads: list[MaterialReads] = [MaterialReads(color="displayColor")]
+        self.reads: list[MaterialReads] = [MaterialReads(color="displayColor", opacity="displayOpacity")]
         self.textures = TextureSet()
         self._index: dict[str, int] = {}
 

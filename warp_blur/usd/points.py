@@ -99,10 +99,10 @@ def points_unit_fields(scene, prim: Usd.Prim, t: Usd.TimeCode) -> dict | None:
     right, up = facing_axes(prim, scene.camera.GetPrim(), scene._xf_cache(scene.frame))
     point_of_tri = np.repeat(np.arange(n), DISC_SIDES)
     material, flags, blur = scene._common(prim, t)
-    colors, uvs = scene._surface_primvars(prim, t, material, np.repeat(point_of_tri[:, None], 3, axis=1),
+    colors, uvs, opacity = scene._surface_primvars(prim, t, material, np.repeat(point_of_tri[:, None], 3, axis=1),
                                          point_of_tri, None)
     return dict(
         path=path, prim=prim, local_tris=disc_triangles(n), num_points=n * (DISC_SIDES + 1),
         points_at=derived_points_fn(centres_at, lambda c: disc_vertices(c, radii, right, up)), transforms_at=scene._prim_transform_fn(prim),
-        num_instances=1, corner_colors=colors, corner_uvs=uvs, material=material,
+        num_instances=1, corner_colors=colors, corner_uvs=uvs, corner_opacity=opacity, material=material,
         flags=flags, blur_scale=blur, visibility_prims=[prim])

@@ -12,17 +12,18 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-from pxr import Sdf, Usd, UsdGeom, UsdShade, UsdSkel
+from pxr import Sdf, Usd, UsdGeom, UsdShade
 
 from ..core.errors import InvalidGeometryError
 from .dome import dome_map
 from .lights import dome_radiance, find_lights, headlight_table, light_table
 from ..core.log import warn_once
-from .materials import MaterialTable
+from .materials import CODE_CORNER_OPACITY, MaterialTable
 from .curves import curves_unit_fields
 from .points import derived_points_fn, points_unit_fields
 from .normals import authored_normals_fn, split_normals_fn, transform_normals, vertex_normals, vertex_normals_since
 from .subdivision import mesh_refinement, stage_level, refined_surface_primvars, refined_triangles
+from .skinning import Skins, skinned_points_fn
 from .stage import Shutter
 from .primvars import corner_primvar
 from .tessellate import tessellate_gprim, triangulate_corners
@@ -54,6 +55,7 @@ class GeomUnit:
     visibility_prims: list = field(default_factory=list)
     tri_materials: np.ndarray | None = None   # (T,) int32 per local triangle (GeomSubset bindings), else `material`
     normals_at: Callable[[float], np.ndarray] | None = None   # time -> (N, 3) authored local normals (normals.py)
+    corner_opacity: np.ndarray | None = None  # (T, 3) float32 opacity primvar (displayOpacity) at each corner
 
     def visible_at(self, time: float) -> bool:
         t = Usd.TimeCode(time)
@@ -108,6 +110,7 @@ class Scene:
         self.units: list[GeomUnit] = []
         self._xf_caches: dict[float, UsdGeom.XformCache] = {}
         self._last_normals: tuple[np.ndarray, np.ndarray] | None = None   # (positions, their normals)
+        self._skins = Skins()
         self._collect()
         self.light_prims, dome = find_lights(stage)
         self.dome = dome_radiance(dome, frame)
@@ -183,9 +186,14 @@ class Scene:
 
     def _surface_primvars(self, prim: Usd.Prim, t: Usd.TimeCode, material: int, tris: np.ndarray,
                           face_of_tri: np.ndarray, corners: np.ndarray | None):
-        """(corner colours (T, 3, 3), corner texture coordinates (T, 3, 2) or None) that the
-        prim's material reads (its colour primvar, displayColor by default; its `st`)."""
+        """(corner colours (T, 3, 3), corner texture coordinates (T, 3, 2) or None, corner
+        opacities (T, 3) or None) that the prim's material reads (its colour primvar, displayColor
+        by default; its `st`; its opacity primvar, displayOpacity by default)."""
         reads = self.materials.reads[material]
+        opacity = None
+        if reads.opacity:
+            values = corner_primvar(prim, reads.opacity, t, tris, face_of_tri, corners, 1)
+            opacity = None if values is None else np.clip(values[..., 0], 0.0, 1.0)
         colors = None
         if reads.color:
             colors = corner_primvar(prim, reads.color, t, tris, face_of_tri, corners, 3)
@@ -198,7 +206,7 @@ class Scene:
                 warn_once(f"st:{prim.GetPath()}", f"{prim.GetPath()}: its material's textures read primvar "
                                                   f"'{reads.st}', which it does not have; texturing at (0, 0)")
                 uvs = np.zeros((len(tris), 3, 2), np.float32)
-        return colors, uvs
+        return colors, uvs, opacity
 
     def _points_fn(self, prim: Usd.Prim, npts: int) -> Callable[[float], np.ndarray]:
         """Local points at a time: USD's interpolation, velocities/accelerations applied by USD."""
@@ -241,46 +249,6 @@ class Scene:
                 return None
         return points_at
 
-    def _skinning(self, prim: Usd.Prim):
-        """(skinning query, skel query, skeleton prim) when UsdSkel skins this mesh, else None."""
-        binding = UsdSkel.BindingAPI(prim)
-        if not prim.HasAPI(UsdSkel.BindingAPI):
-            return None
-        skel = binding.GetInheritedSkeleton()
-        root = UsdSkel.Root.Find(prim)
-        if not skel or not root:
-            return None
-        if not hasattr(self, "_skel_cache"):
-            self._skel_cache = UsdSkel.Cache()
-            self._skel_roots: set = set()
-        if root.GetPath() not in self._skel_roots:
-            self._skel_cache.Populate(root, Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate))
-            self._skel_roots.add(root.GetPath())
-        skinning = self._skel_cache.GetSkinningQuery(prim)
-        skel_query = self._skel_cache.GetSkelQuery(skel)
-        if not skinning or not skinning.HasJointInfluences() or not skel_query:
-            return None
-        return skinning, skel_query, skel.GetPrim()
-
-    def _skinned_points_fn(self, prim: Usd.Prim, npts: int, skin) -> Callable[[float], np.ndarray]:
-        """Points at a time as USD's own linear blend skinning computes them (skeleton space)."""
-        skinning, skel_query, _ = skin
-        attr = UsdGeom.Mesh(prim).GetPointsAttr()
-        path = str(prim.GetPath())
-
-        def points_at(time: float) -> np.ndarray:
-            t = Usd.TimeCode(time)
-            pts = attr.Get(t)
-            xforms = skel_query.ComputeSkinningTransforms(t)
-            if pts is None or xforms is None or not skinning.ComputeSkinnedPoints(xforms, pts, t):
-                raise InvalidGeometryError(path, f"UsdSkel could not skin the points at time {time}")
-            arr = np.asarray(pts, np.float64).reshape(-1, 3)
-            if len(arr) != npts or not np.isfinite(arr).all():
-                raise InvalidGeometryError(path, f"skinned points are invalid at time {time}")
-            return arr
-
-        return points_at
-
     def _prim_transform_fn(self, prim: Usd.Prim):
         def transforms_at(time: float, cache: UsdGeom.XformCache) -> np.ndarray:
             return np.array(cache.GetLocalToWorldTransform(prim), np.float64)[None]
@@ -298,8 +266,8 @@ class Scene:
             return
         tris, face_of_tri, corners, npts, smooth = topo
         path = str(prim.GetPath())
-        skin = self._skinning(prim)
-        points_at = self._skinned_points_fn(prim, npts, skin) if skin else self._points_fn(prim, npts)
+        skin = self._skins.find(prim)
+        points_at = skinned_points_fn(prim, npts, skin) if skin else self._points_fn(prim, npts)
         # skinned points are in skeleton space: the mesh's own transform is ignored (UsdSkel rules)
         xform_prim = skin[2] if skin else prim
         try:
@@ -327,19 +295,22 @@ class Scene:
             flags |= FLAG_SMOOTH
         tri_materials = self.materials.subset_materials(prim, t, material, face_of_tri)
         if refined is not None:
-            colors, uvs = refined_surface_primvars(prim, t, self.materials.reads[material], counts, indices,
-                                                   face_of_tri, corner_weights)
+            colors, uvs, opacity = refined_surface_primvars(prim, t, self.materials.reads[material], counts,
+                                                            indices, face_of_tri, corner_weights)
             colors = colors if colors is not None else _grey_corners(len(tris))
         else:
-            colors, uvs = self._surface_primvars(prim, t, material, tris, face_of_tri, corners)
+            colors, uvs, opacity = self._surface_primvars(prim, t, material, tris, face_of_tri, corners)
         if tri_materials is not None:   # each subset's triangles read what their own material reads
             uvs = uvs if uvs is not None else np.zeros((len(tris), 3, 2), np.float32)
             for m in np.unique(tri_materials[tri_materials != material]):
-                c_m, uv_m = self._surface_primvars(prim, t, int(m), tris, face_of_tri, corners)
+                c_m, uv_m, op_m = self._surface_primvars(prim, t, int(m), tris, face_of_tri, corners)
                 rows = tri_materials == m
                 colors[rows] = c_m[rows]
                 if uv_m is not None:
                     uvs[rows] = uv_m[rows]
+                if op_m is not None or opacity is not None:
+                    opacity = opacity if opacity is not None else np.ones((len(tris), 3), np.float32)
+                    opacity[rows] = op_m[rows] if op_m is not None else 1.0
         if split is not None and corners is not None:   # hard-edged faceVarying normals (normals.py)
             source, point_of_corner, normals_at = split
             tris = point_of_corner[corners].astype(tris.dtype)
@@ -350,7 +321,7 @@ class Scene:
             transforms_at=self._prim_transform_fn(xform_prim), num_instances=1,
             corner_colors=colors, corner_uvs=uvs, material=material,
             flags=flags, blur_scale=blur, visibility_prims=[prim], tri_materials=tri_materials,
-            normals_at=normals_at))
+            normals_at=normals_at, corner_opacity=opacity))
 
     def _add_gprim(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
         out = tessellate_gprim(prim, t)
@@ -360,11 +331,11 @@ class Scene:
         material, flags, blur = self._common(prim, t)
         if smooth:
             flags |= FLAG_SMOOTH
-        colors, uvs = self._surface_primvars(prim, t, material, tris, face_of_tri, corners)
+        colors, uvs, opacity = self._surface_primvars(prim, t, material, tris, face_of_tri, corners)
         self.units.append(GeomUnit(
             path=str(prim.GetPath()), prim=prim, local_tris=tris, num_points=len(pts),
             points_at=lambda time, p=pts: p, transforms_at=self._prim_transform_fn(prim), num_instances=1,
-            corner_colors=colors, corner_uvs=uvs, material=material,
+            corner_colors=colors, corner_uvs=uvs, material=material, corner_opacity=opacity,
             flags=flags, blur_scale=blur, visibility_prims=[prim]))
 
     def _add_fields(self, fields: dict | None) -> None:
@@ -428,7 +399,7 @@ class Scene:
                 if len(tris) == 0:
                     continue
                 material, flags, blur = self._common(sub, t)
-                colors, uvs = self._surface_primvars(sub, t, material, tris, face_of_tri, corners)
+                colors, uvs, opacity = self._surface_primvars(sub, t, material, tris, face_of_tri, corners)
                 if smooth:
                     flags |= FLAG_SMOOTH
 
@@ -444,11 +415,11 @@ class Scene:
                     path=prototype_unit_name(path, proto_path, sub.GetPath()), prim=sub, local_tris=tris,
                     num_points=npts, points_at=points_at, transforms_at=transforms_at,
                     num_instances=len(sel), corner_colors=colors, corner_uvs=uvs, material=material, flags=flags,
-                    blur_scale=blur, visibility_prims=[prim, sub]))
+                    blur_scale=blur, visibility_prims=[prim, sub], corner_opacity=opacity))
 
     # ----------------------------------------------------------------------------- tables
     def _build_tables(self) -> None:
-        tris, colors, uvs, mats, flags, unit_of_tri, objects = [], [], [], [], [], [], []
+        tris, colors, uvs, mats, flags, unit_of_tri, objects, alphas = [], [], [], [], [], [], [], []
         self.unit_vertex_offsets = []
         v = 0
         num_objects = 0
@@ -463,6 +434,8 @@ class Scene:
             mats.append(np.tile(u.tri_materials, u.num_instances).astype(np.int32) if u.tri_materials is not None
                         else np.full(n, u.material, np.int32))
             flags.append(np.full(n, u.flags, np.int32))
+            alphas.append(np.tile(u.corner_opacity, (u.num_instances, 1)) if u.corner_opacity is not None
+                          else np.full((n, 3), np.nan, np.float32))
             unit_of_tri.append(np.full(n, ui, np.int32))
             objects.append(np.repeat(np.arange(u.num_instances), len(u.local_tris)) + num_objects)
             num_objects += u.num_instances
@@ -480,10 +453,22 @@ class Scene:
         self.material_table = self.materials.array()
         cut = self.materials.cutouts()
         # (T, 3) opacity test per triangle (kernels/cutout.py), or None when every material is opaque;
-        # (T,) triangles of fractional opacity (present at a fraction of each pixel's time samples)
-        self.tri_cutout = cut[self.tri_material] if (cut[:, 0] != -1).any() and len(self.tri_material) else None
+        # (T,) triangles of fractional opacity (present at a fraction of each pixel's time samples);
+        # (T, 3) corner opacities from a primvar (displayOpacity) where a material reads one, else 1
+        alpha = cat(alphas, (0, 3), np.float32)
+        tri_cut = cut[self.tri_material] if len(self.tri_material) else np.zeros((0, 3), np.float32)
         self.tri_fractional = self.materials.fractional()[self.tri_material] if len(self.tri_material) \
             else np.zeros(0, bool)
+        read = ~np.isnan(alpha[:, 0])
+        alpha = np.where(read[:, None], alpha, 1.0).astype(np.float32)
+        threshold = tri_cut[:, 1]
+        primvar_test = read & ((threshold > 0) | (alpha.min(axis=1) < 1.0))
+        if primvar_test.any():
+            tri_cut = tri_cut.copy()
+            tri_cut[primvar_test, 0] = CODE_CORNER_OPACITY
+            self.tri_fractional = np.where(read, primvar_test & (threshold <= 0), self.tri_fractional)
+        self.tri_cutout = tri_cut if (tri_cut[:, 0] != -1).any() else None
+        self.tri_alpha = alpha if primvar_test.any() else None
         self.any_fractional = bool(self.tri_fractional.any())
         self.any_smooth = bool((self.tri_flags & FLAG_SMOOTH).any())
 

@@ -345,13 +345,18 @@ def mesh_refinement(mesh, time, num_points: int, levels: int):
 
 
 def refined_surface_primvars(prim, time, reads, counts: np.ndarray, indices: np.ndarray, parent: np.ndarray,
-                             weights: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """(corner colours (T', 3, 3) or None, corner texture coordinates (T', 3, 2) or None) that a
-    material reading `reads` (materials.MaterialReads) needs, on the refined triangles."""
+                             weights: np.ndarray):
+    """(corner colours (T', 3, 3) or None, corner texture coordinates (T', 3, 2) or None, corner
+    opacities (T', 3) or None) that a material reading `reads` (materials.MaterialReads) needs,
+    on the refined triangles."""
     colors = refined_corner_primvar(prim, reads.color, time, counts, indices, parent, weights, 3) if reads.color else None
     uvs = None
     if reads.st:
         uvs = refined_corner_primvar(prim, reads.st, time, counts, indices, parent, weights, 2)
         if uvs is None:
             uvs = np.zeros((len(parent), 3, 2), np.float32)
-    return colors, uvs
+    opacity = None
+    if reads.opacity:
+        values = refined_corner_primvar(prim, reads.opacity, time, counts, indices, parent, weights, 1)
+        opacity = None if values is None else np.clip(values[..., 0], 0.0, 1.0)
+    return colors, uvs, opacity

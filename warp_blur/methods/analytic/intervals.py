@@ -22,7 +22,7 @@ from __future__ import annotations
 import warp as wp
 
 from ...kernels.cutout import cutout_hides, has_cutout, is_fractional
-from ...kernels.dome import dome_along
+from ...kernels.dome import dome_over
 from ...kernels.kernel_types import Bins, Geometry, Shading, View
 from ...kernels.raster import add_pixel, box_rejects, pixel_tile
 from ...kernels.rays import intersect_triangle, static_entry_hit
@@ -284,7 +284,7 @@ def static_color(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: 
     whole-shutter interval weighted exactly as the resolve weighs it (time slots for bits > 0,
     span lengths for exact), without storing it. Equals resolving the stored interval."""
     if e < 0:
-        bg = dome_along(sh, d)
+        bg = dome_over(sh, d, 0.0, 1.0)
         return wp.vec4(bg[0], bg[1], bg[2], 0.0)
     m = entry_moving(geo, e)
     n, linear, la, lm, lb = radiance_plan(view, geo, sh, e, m, o, d, 0.0, 1.0, n_shade_max, lights_static)
@@ -309,7 +309,7 @@ def static_color(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: 
             color = color + la * w
         covered = covered + w
     if bits > 0:
-        color = color + dome_along(sh, d) * (1.0 - covered)
+        color = color + dome_over(sh, d, 0.0, 1.0) * (1.0 - covered)
     return wp.vec4(color[0], color[1], color[2], covered)
 
 

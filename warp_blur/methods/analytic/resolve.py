@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from ...kernels.dome import dome_along
+from ...kernels.dome import dome_along, dome_at, dome_over
 from ...kernels.kernel_types import Geometry, Shading, View
 from .moving import entry_moving, entry_time, sample_ray
 from .radiance import boundary_radiance, lerp_in_time, radiance_plan, sub_piece_time
@@ -173,6 +173,24 @@ def span_mean(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.
 
 
 @wp.func
+def dome_uncovered(sh: Shading, d: wp.vec3, masks: wp.array2d(dtype=wp.uint32), row: int, words: int, bits: int,
+                   covered: int) -> wp.vec3:
+    """The dome along d integrated over the time slots no surface covers (bits clear in
+    masks[row, 0:words]), as a fraction of the shutter: one lookup per 8 slots when the camera
+    turns, one in all when it holds."""
+    if sh.dome_binding < 0 or sh.dome_segments == 0:
+        return dome_along(sh, d) * (float(bits - covered) / float(bits))
+    acc = wp.vec3(0.0, 0.0, 0.0)
+    for c in range((bits + 7) // 8):
+        w = c // 4
+        free = popcount(word_mask(8 * c, wp.min(8 * c + 8, bits), w) & ~masks[row, w])
+        if free > 0:
+            slot_mid = 0.5 * float(8 * c + wp.min(8 * c + 8, bits))
+            acc = acc + dome_at(sh, d, slot_mid / float(bits)) * float(free)
+    return acc / float(bits)
+
+
+@wp.func
 def run_color(view: View, geo: Geometry, sh: Shading, o: wp.vec3, d: wp.vec3,
               iv_t: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int), front: int, a: float, b: float,
               n_shade_max: int, lights_static: int, shaded: wp.array(dtype=int)) -> wp.vec3:
@@ -181,7 +199,7 @@ def run_color(view: View, geo: Geometry, sh: Shading, o: wp.vec3, d: wp.vec3,
     if b <= a:
         return wp.vec3(0.0, 0.0, 0.0)
     if front < 0:
-        return dome_along(sh, d) * (b - a)
+        return dome_over(sh, d, a, b) * (b - a)
     shaded[0] = shaded[0] + 1
     return span_mean(view, geo, sh, iv_e[front], o, d, iv_t[front], a, b, n_shade_max, lights_static) * (b - a)
 
@@ -260,7 +278,7 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
                     shaded[0] = shaded[0] + 1
                     color = color + visible_radiance(view, geo, sh, iv_e[i], o, d, ti, n_shade_max, lights_static,
                                                      bits, masks, row, 2 * words)
-    color = color + dome_along(sh, d) * (float(bits - covered) / float(bits))
+    color = color + dome_uncovered(sh, d, masks, row, words, bits, covered)
     rgba[pix, 0] = rgba[pix, 0] + weight * color[0]
     rgba[pix, 1] = rgba[pix, 1] + weight * color[1]
     rgba[pix, 2] = rgba[pix, 2] + weight * color[2]
@@ -346,7 +364,7 @@ def resolve_exact(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_
                                           lights_static) * (1.0 - tau)
                 cover = cover + (1.0 - tau)
             else:
-                color = color + dome_along(sh, d) * (1.0 - tau)
+                color = color + dome_over(sh, d, tau, 1.0) * (1.0 - tau)
             run_start = 1.0
             tau = 1.0
     color = color + run_color(view, geo, sh, o, d, iv_t, iv_e, run_front, run_start, 1.0, n_shade_max,
