@@ -12,6 +12,7 @@ import warp as wp
 
 from ..raster.binning import TILE_SIZE, TileBins, bin_entries, entry_pixel_bounds, swept_bands
 from ..core.camera import Projection
+from ..raster.culling import hidden_back_faces
 from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_shading, make_view
 from ..kernels.kernel_types import Geometry
 from ..core import progress
@@ -263,6 +264,11 @@ class FrameContext:
             visible = visible & triangles
         tris = np.nonzero(visible)[0].astype(np.int32)
         k = np.full(len(tris), knot, np.int32)
+        sc = self.scene
+        hidden = hidden_back_faces(positions[knot:knot + 1], sc.tri_vertices, sc.tri_object, sc.tri_closed, tris,
+                                   k * 0, k * 0, self.proj.near, self.proj.far, self.proj.orthographic)
+        tris, k = tris[~hidden], k[~hidden]
+        self.counters["back_faces_dropped"] = int(hidden.sum())
         bins = self.bin(positions, tris, k, k)
         return make_geometry(self.tables, positions, normals, tris, k, k, velocities), bins
 

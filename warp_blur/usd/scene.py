@@ -26,7 +26,7 @@ from .subdivision import mesh_refinement, stage_level, refined_surface_primvars,
 from .skinning import Skins, skinned_points_fn
 from .stage import Shutter
 from .primvars import corner_primvar
-from .tessellate import tessellate_gprim, triangulate_corners
+from .tessellate import is_closed_surface, tessellate_gprim, triangulate_corners
 
 FLAG_DOUBLE_SIDED = 1
 FLAG_SMOOTH = 2
@@ -471,6 +471,13 @@ class Scene:
         self.tri_alpha = alpha if primvar_test.any() else None
         self.any_fractional = bool(self.tri_fractional.any())
         self.any_smooth = bool((self.tri_flags & FLAG_SMOOTH).any())
+        # (T,) triangles of closed, opaque surfaces (raster/culling.py drops their hidden back faces)
+        opaque = tri_cut[:, 0] == -1 if len(tri_cut) else np.zeros(0, bool)
+        closed_unit = np.array([is_closed_surface(u.local_tris, u.points_at(self.frame)) for u in self.units], bool)
+        self.tri_closed = closed_unit[self.tri_unit] & opaque if len(self.tri_unit) else np.zeros(0, bool)
+        if self.tri_closed.any():
+            unit_open = np.bincount(self.tri_unit[~self.tri_closed], minlength=len(self.units)) > 0
+            self.tri_closed &= ~unit_open[self.tri_unit]     # one see-through triangle opens its prim
 
     @property
     def num_triangles(self) -> int:

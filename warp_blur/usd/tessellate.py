@@ -117,3 +117,20 @@ def _tessellate(prim: Usd.Prim, time: Usd.TimeCode) -> tuple[np.ndarray, np.ndar
     else:
         return None
     return np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int32), smooth
+
+
+def is_closed_surface(tris: np.ndarray, points: np.ndarray) -> bool:
+    """True when triangles (T, 3) over points (N, 3) form closed, consistently oriented surfaces
+    (points at the same position welded: seams of split normals or texture coordinates): every
+    directed edge a -> b appears once and its reverse b -> a once. A ray from outside such a
+    surface enters it through a front face first, so its back faces cannot show."""
+    if len(tris) == 0 or len(points) == 0:
+        return False
+    _, weld = np.unique(np.asarray(points, np.float64), axis=0, return_inverse=True)
+    t = weld.reshape(-1)[tris]
+    a, b = t.ravel(), np.roll(t, -1, axis=1).ravel()
+    if (a == b).any():
+        return False
+    n = np.int64(len(points))
+    forward, backward = np.sort(a * n + b), np.sort(b * n + a)
+    return bool((np.diff(forward) != 0).all() and np.array_equal(forward, backward))

@@ -20,6 +20,7 @@ import numpy as np
 from pxr import UsdGeom
 
 from ...core.camera import Projection
+from ...raster.culling import hidden_back_faces
 from ..frame import MOTION_PROBES
 from ...core.log import warn_once
 from ...usd.scene import Scene
@@ -272,6 +273,13 @@ def prepare_motion(ctx):
     with ctx.timed("segments"):
         plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.resolved_segment_error_px,
                            s.resolved_segment_time_error, ctx.probe_snapshots)
+        hidden = hidden_back_faces(plan.positions, ctx.scene.tri_vertices, ctx.scene.tri_object, ctx.scene.tri_closed,
+                                   plan.entry_tri, plan.entry_k0, plan.entry_k1, ctx.proj.near, ctx.proj.far,
+                                   ctx.proj.orthographic)
+        if hidden.any():
+            plan.entry_tri, plan.entry_k0, plan.entry_k1 = (a[~hidden] for a in (plan.entry_tri, plan.entry_k0,
+                                                                                  plan.entry_k1))
+        ctx.counters["back_faces_dropped"] = int(hidden.sum())
     geo = make_geometry(ctx.tables, plan.positions, plan.normals, plan.entry_tri, plan.entry_k0, plan.entry_k1)
     # fractional opacity changes with time slots, so its entries take the moving path even when still
     static = (plan.entry_k0 == plan.entry_k1) & ~ctx.scene.tri_fractional[plan.entry_tri]
