@@ -126,11 +126,18 @@ def is_closed_surface(tris: np.ndarray, points: np.ndarray) -> bool:
     surface enters it through a front face first, so its back faces cannot show."""
     if len(tris) == 0 or len(points) == 0:
         return False
-    _, weld = np.unique(np.asarray(points, np.float64), axis=0, return_inverse=True)
-    t = weld.reshape(-1)[tris]
-    a, b = t.ravel(), np.roll(t, -1, axis=1).ravel()
+    tris = np.asarray(tris, np.int64)
+    if _edges_pair_up(tris, len(points)):
+        return True
+    rows = np.ascontiguousarray(np.asarray(points, np.float64) + 0.0)     # + 0.0: -0.0 and 0.0 alike
+    _, weld = np.unique(rows.view(np.dtype((np.void, rows.itemsize * 3))).ravel(), return_inverse=True)
+    return _edges_pair_up(weld.reshape(-1)[tris], len(points))
+
+
+def _edges_pair_up(tris: np.ndarray, n: int) -> bool:
+    """Every directed edge of triangles (T, 3) over n points appears once, and its reverse once."""
+    a, b = tris.ravel(), np.roll(tris, -1, axis=1).ravel()
     if (a == b).any():
         return False
-    n = np.int64(len(points))
     forward, backward = np.sort(a * n + b), np.sort(b * n + a)
     return bool((np.diff(forward) != 0).all() and np.array_equal(forward, backward))
