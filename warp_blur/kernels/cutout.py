@@ -38,13 +38,14 @@ PRESENCE_STEPS = wp.constant(_vec8(0.6180339887, 0.4142135624, 0.7320508076, 0.2
 
 
 @wp.func
-def presence_threshold(tri: int, sx: float, sy: float, u: float) -> float:
-    """ξ in [0, 1) of triangle tri at sample position (sx, sy) (pixels) and shutter time u."""
+def presence_threshold(tri: int, sx: float, sy: float, u: float, shift: int) -> float:
+    """ξ in [0, 1) of triangle tri at sample position (sx, sy) (pixels) and shutter time u, its
+    time slot moved on by `shift` (geo.presence_shift: the velocity method's presence passes)."""
     ix = int(wp.floor(sx * 16.0))
     iy = int(wp.floor(sy * 16.0))
     state = wp.rand_init(tri, ix + iy * 8191)
     h = wp.randf(state)
-    k = wp.clamp(int(u * float(PRESENCE_SLOTS)), 0, PRESENCE_SLOTS - 1)
+    k = wp.clamp(int(u * float(PRESENCE_SLOTS)), 0, PRESENCE_SLOTS - 1) + shift
     x = h + PRESENCE_STEPS[tri % 8] * float(k)
     return x - wp.floor(x)
 
@@ -74,7 +75,7 @@ def cutout_hides(geo: Geometry, tri: int, wb: float, wc: float, u: float, sx: fl
         opacity = binding_value(geo.tex, code, uv, lod)[0]
     if c[1] > 0.0:
         return opacity < c[1]
-    return opacity <= presence_threshold(tri, sx, sy, u)
+    return opacity <= presence_threshold(tri, sx, sy, u, geo.presence_shift)
 
 
 @wp.func

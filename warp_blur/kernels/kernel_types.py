@@ -61,6 +61,7 @@ class Geometry:
     tri_alpha: wp.array(dtype=wp.vec3)      # (T,) corner opacities (code -4, cutout.py), or (1,) unused
     has_cutouts: int                        # 1 when some triangle has a cutout test (cutout.py)
     cutout_slots: int                       # time slots per shutter at which the analytic method tests a moving cutout
+    presence_shift: int                     # added to fractional opacity's presence slot (cutout.py; 0 but in velocity passes)
     tex: Textures                           # the frame's textures (for cutout opacity)
 
 

@@ -31,7 +31,7 @@ import warp as wp
 from ..raster.device_data import make_bins, make_geometry
 from .frame import FrameContext
 from ..core.parallel import launch_pixels
-from ..kernels.raster import render_depth_motion, render_sharp_depth_motion
+from ..kernels.raster import render_depth_motion, render_sharp, render_sharp_depth_motion
 from ..usd.normals import vertex_normals
 
 SOFT_Z = wp.constant(0.01)
@@ -193,6 +193,30 @@ def tile_neighbor_max(vhalf: np.ndarray, tile: int) -> tuple[np.ndarray, int]:
     return nmax.reshape(-1, 2), tx
 
 
+#: sharp passes the velocity method averages where opacity is fractional: presence at consecutive
+#: slots of each triangle's sequence (stratified), so translucency is smooth rather than a dither
+PRESENCE_PASSES = 8
+
+
+def presence_passes(ctx: FrameContext, view, geo, sh, bins, u: float, first_pass: wp.array) -> wp.array:
+    """(H*W, 4) the mean of first_pass (presence slot shift 0, which also gave depth and motion)
+    and PRESENCE_PASSES - 1 more sharp renders of the same instant, each with the fractional
+    surfaces' presence at the next slot of their sequences."""
+    dev = ctx.device
+    more = wp.zeros_like(first_pass)
+    none = wp.zeros(1, dtype=int, device=dev)
+    rec_e, rec_hit = wp.zeros((1, 1), dtype=int, device=dev), wp.zeros((1, 1), dtype=wp.vec4, device=dev)
+    with ctx.timed("render"):
+        for j in range(1, PRESENCE_PASSES):
+            geo.presence_shift = j
+            launch_pixels(render_sharp, ctx.num_pixels,
+                          lambda first, _n: [view, geo, sh, bins, u, 1.0, none, 0, first, 0, more, rec_e, rec_hit],
+                          dev, ctx.settings.threads)
+        geo.presence_shift = 0
+    ctx.counters["presence_passes"] = PRESENCE_PASSES
+    return wp.array((first_pass.numpy() + more.numpy()) / PRESENCE_PASSES, dtype=float, device=dev)
+
+
 def render_velocity(ctx: FrameContext) -> np.ndarray:
     s = ctx.settings
     dev = ctx.device
@@ -229,6 +253,8 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
             launch_pixels(render_sharp_depth_motion, ctx.num_pixels,
                           lambda first, _n: [view, geo, sh, b, u, 0, 2, first, sharp, depth_w, motion_w], dev,
                           s.threads)
+        if ctx.scene.any_fractional:
+            sharp = presence_passes(ctx, view, geo, sh, b, u, sharp)
     else:
         ctx.sharp_pass(center, 1.0, sharp)
         with ctx.timed("velocity"):
