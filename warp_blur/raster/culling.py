@@ -33,10 +33,10 @@ def instance_volume_sign(positions: np.ndarray, tri_vertices: np.ndarray, tri_ob
     np.logical_and.at(ok, tri_object, inside & closed)
     sign = np.zeros(n_obj)
     first = None
+    tv, obj = tri_vertices[closed], tri_object[closed]       # open instances are already out
     for k in range(positions.shape[0]):
         p = positions[k]
-        vol = np.bincount(tri_object, weights=_det(p[tri_vertices[:, 0]], p[tri_vertices[:, 1]], p[tri_vertices[:, 2]]),
-                          minlength=n_obj)
+        vol = np.bincount(obj, weights=_det(p[tv[:, 0]], p[tv[:, 1]], p[tv[:, 2]]), minlength=n_obj)
         s = np.sign(vol)
         first = s if first is None else first
         ok &= (s == first) & (s != 0)
