@@ -119,3 +119,59 @@ def test_udim_tiles_are_read_by_their_texture_coordinates(scene_path):
         np.testing.assert_allclose(cells["br"], (0, 1, 0), atol=1e-3, err_msg=method)
         np.testing.assert_allclose(cells["tl"], (0, 0, 1), atol=1e-3, err_msg=method)
         np.testing.assert_allclose(cells["tr"], (0.5, 0.5, 0.5), atol=1e-3, err_msg=method)
+
+
+def _transformed_step_stage(path: str, nodes) -> str:
+    """A 4×2 emissive quad (s = (x + 2) / 4, t = (y + 1) / 2, from primvar `uvs`) reading a step
+    texture (0 for s < 0.5, 1 above, repeating) through UsdTransform2d nodes, `nodes` listed
+    from the reader to the texture as (scale, rotation, translation)."""
+    from pxr import Gf, Sdf, UsdShade
+    folder = os.path.dirname(path)
+    step = np.zeros((4, 512, 3), np.uint8)
+    step[:, 256:] = 255
+    Image.fromarray(step).save(os.path.join(folder, "step.png"))
+    stage = new_stage(path)
+    add_camera(stage, translate=(0, 0, 8), focal=24.0, haperture=36.0, vaperture=24.0, shutter=(0.0, 0.0))
+    mat = add_textured_material(stage, "/World/Looks/M", "./step.png", wrap="repeat", st_name="uvs")
+    tex = UsdShade.Shader.Get(stage, "/World/Looks/M/Texture")
+    source = UsdShade.Shader.Get(stage, "/World/Looks/M/StReader")
+    for i, (scale, rotation, translation) in enumerate(nodes):
+        node = UsdShade.Shader.Define(stage, f"/World/Looks/M/Transform{i}")
+        node.CreateIdAttr("UsdTransform2d")
+        node.CreateInput("in", Sdf.ValueTypeNames.Float2).ConnectToSource(source.ConnectableAPI(), "result")
+        node.CreateInput("scale", Sdf.ValueTypeNames.Float2).Set(Gf.Vec2f(*scale))
+        node.CreateInput("rotation", Sdf.ValueTypeNames.Float).Set(rotation)
+        node.CreateInput("translation", Sdf.ValueTypeNames.Float2).Set(Gf.Vec2f(*translation))
+        node.CreateOutput("result", Sdf.ValueTypeNames.Float2)
+        source = node
+    tex.GetInput("st").ConnectToSource(source.ConnectableAPI(), "result")
+    quad = add_quad(stage, "/World/Quad", 2.0, 1.0, material=mat)
+    set_st(quad, [(0, 0), (1, 0), (1, 1), (0, 1)], name="uvs")
+    stage.GetRootLayer().Save()
+    return path
+
+
+@pytest.mark.parametrize("nodes,want", [
+    ([((2, 1), 0.0, (0.25, 0))], lambda s, t: ((2 * s + 0.25) % 1.0) >= 0.5),
+    ([((2, 1), 0.0, (0, 0)), ((1, 1), 0.0, (0.25, 0))], lambda s, t: ((2 * s + 0.25) % 1.0) >= 0.5),
+    ([((1, 1), 0.0, (0.25, 0)), ((2, 1), 0.0, (0, 0))], lambda s, t: ((2 * s + 0.5) % 1.0) >= 0.5),
+    ([((1, 1), 90.0, (0, 0))], lambda s, t: (-t % 1.0) >= 0.5),
+])
+def test_usd_transform2d_maps_the_texture_coordinates(scene_path, nodes, want):
+    """UsdTransform2d scales, rotates counter-clockwise (degrees) and translates st, in that order;
+    chained nodes apply from the reader on; the primvar is found through them. Pixel centres away
+    from the step's edges read 0 or 1 as the closed form says."""
+    path = _transformed_step_stage(scene_path(), nodes)
+    red = wb.render(path, frame=1, method="accumulation", samples=1, resolution=(96, 64)).rgba[..., 0]
+    rows, cols = np.arange(25, 39), np.arange(33, 63)          # inside the quad (rows 24..39, cols 32..63)
+    s = (((cols + 0.5) / 8.0 - 6.0) + 2.0) / 4.0
+    t = ((4.0 - (rows + 0.5) / 8.0) + 1.0) / 2.0               # y up: row 0 is y = 4
+    ss, tt = np.meshgrid(s, t)
+    expected = want(ss, tt).astype(float)
+    got = red[np.ix_(rows, cols)]
+    # pixels within 1/64 (in st') of a step edge may be filtered: leave them out
+    edge = np.zeros_like(expected, bool)
+    for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        edge |= want(ss + dx / 64.0, tt + dy / 64.0).astype(float) != expected
+    assert (~edge).sum() > 200
+    np.testing.assert_allclose(got[~edge], expected[~edge], atol=0.02)

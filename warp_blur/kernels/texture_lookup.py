@@ -79,15 +79,17 @@ def binding_value(tx: Textures, b: int, uv: wp.vec2, lod_base: float) -> wp.vec3
     lod_base is log2 of the surface's texture-coordinate span per pixel (textures.py)."""
     tex = int(tx.bindings[b, 0])
     channel = int(tx.bindings[b, 1])
-    st = uv
+    # a UsdTransform2d between the primvar and the texture (identity when none)
+    st = wp.vec2(tx.bindings[b, 11] * uv[0] + tx.bindings[b, 12] * uv[1] + tx.bindings[b, 15],
+                 tx.bindings[b, 13] * uv[0] + tx.bindings[b, 14] * uv[1] + tx.bindings[b, 16])
     if tx.bindings[b, 10] > 0.5:   # UDIM: tile 1001 + u + 10 v, read at the coordinates within it
-        fu = wp.floor(uv[0])
-        fv = wp.floor(uv[1])
+        fu = wp.floor(st[0])
+        fv = wp.floor(st[1])
         tex = tex + wp.clamp(int(fu), 0, 9) + 10 * wp.clamp(int(fv), 0, 9)
-        st = wp.vec2(uv[0] - fu, uv[1] - fv)
+        st = wp.vec2(st[0] - fu, st[1] - fv)
     first = tx.textures[tex, 0]
     side = float(wp.max(tx.levels[first, 1], tx.levels[first, 2]))
-    c = sample_texture(tx, tex, st, lod_base + wp.log2(side))
+    c = sample_texture(tx, tex, st, lod_base + tx.bindings[b, 17] + wp.log2(side))
     v = wp.vec4(c[0] * tx.bindings[b, 2] + tx.bindings[b, 6], c[1] * tx.bindings[b, 3] + tx.bindings[b, 7],
                 c[2] * tx.bindings[b, 4] + tx.bindings[b, 8], c[3] * tx.bindings[b, 5] + tx.bindings[b, 9])
     if channel == 0:

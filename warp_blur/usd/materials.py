@@ -23,7 +23,7 @@ import numpy as np
 from pxr import Usd, UsdShade
 
 from ..core.log import warn_once
-from .textures import TextureSet
+from .textures import IDENTITY_ST, TextureSet
 
 MATERIAL_WIDTH = 24
 #: Columns of a material row past the first twelve (see the module docstring).
@@ -141,18 +141,43 @@ def _texture_source(node: UsdShade.Shader, output: str, name: str, frame: float,
     if added is None:
         return _Source(_finite(const, name, material_path))
     scale, bias = _scale_bias(node, name, frame, material_path)
-    binding = textures.add_binding(added[0], output, scale, bias)
-    return _Source(_finite(const, name, material_path), binding=binding, st=_st_name(node, frame))
+    st_name, st_transform = _st_source(node, frame, material_path)
+    binding = textures.add_binding(added[0], output, scale, bias, st_transform=st_transform)
+    return _Source(_finite(const, name, material_path), binding=binding, st=st_name)
 
 
-def _st_name(node: UsdShade.Shader, frame: float) -> str:
-    """The primvar a UsdUVTexture's `st` reads (through a UsdPrimvarReader_float2), else "st"."""
-    st_in = node.GetInput("st")
-    if st_in:
-        st_attr, st_is_output = _producer(st_in)
-        if st_attr is not None and st_is_output:
-            return str(_shader_input(UsdShade.Shader(st_attr.GetPrim()), "varname", frame, "st") or "st")
-    return "st"
+def _st_source(node: UsdShade.Shader, frame: float, material_path: str) -> tuple[str, tuple]:
+    """(the primvar a UsdUVTexture's `st` reads through a UsdPrimvarReader_float2, else "st";
+    the UsdTransform2d between them as (m00, m01, m10, m11, tx, ty), identity when none). USD's
+    Transform2d scales, then rotates counter-clockwise by `rotation` degrees, then translates."""
+    transform = IDENTITY_ST
+    inp = node.GetInput("st")
+    for _hop in range(4):          # a reader, possibly behind one (or a few) Transform2d nodes
+        if not inp:
+            return "st", transform
+        attr, is_output = _producer(inp)
+        if attr is None or not is_output:
+            return "st", transform
+        src = UsdShade.Shader(attr.GetPrim())
+        if src.GetIdAttr().Get() != "UsdTransform2d":
+            return str(_shader_input(src, "varname", frame, "st") or "st"), transform
+        scale = np.asarray(_shader_input(src, "scale", frame, (1.0, 1.0)), np.float64).reshape(-1)
+        angle = np.radians(float(_shader_input(src, "rotation", frame, 0.0)))
+        shift = np.asarray(_shader_input(src, "translation", frame, (0.0, 0.0)), np.float64).reshape(-1)
+        if scale.size != 2 or shift.size != 2 or not (np.isfinite(scale).all() and np.isfinite(shift).all()
+                                                      and np.isfinite(angle)):
+            warn_once(f"st2d:{material_path}", f"material {material_path}: a UsdTransform2d has non-finite "
+                                               f"inputs; ignored")
+        else:
+            c, s = np.cos(angle), np.sin(angle)
+            m = np.array([[c * scale[0], -s * scale[1]], [s * scale[0], c * scale[1]]])
+            # walking from the texture towards the reader: this node applies before those found so far
+            outer = np.array([[transform[0], transform[1]], [transform[2], transform[3]]])
+            t = outer @ shift + np.array(transform[4:6])
+            mm = outer @ m
+            transform = (mm[0, 0], mm[0, 1], mm[1, 0], mm[1, 1], t[0], t[1])
+        inp = src.GetInput("in")
+    return "st", transform
 
 
 def _scale_bias(node: UsdShade.Shader, name: str, frame: float, material_path: str):
@@ -182,8 +207,9 @@ def _udim_source(node: UsdShade.Shader, pattern: str, output: str, name: str, fr
                                                   f"{pattern} for '{name}' can be read; using its fallback")
         return _Source(_finite(const, name, material_path))
     scale, bias = _scale_bias(node, name, frame, material_path)
-    binding = textures.add_binding(base, output, scale, bias, udim=True)
-    return _Source(_finite(const, name, material_path), binding=binding, st=_st_name(node, frame))
+    st_name, st_transform = _st_source(node, frame, material_path)
+    binding = textures.add_binding(base, output, scale, bias, udim=True, st_transform=st_transform)
+    return _Source(_finite(const, name, material_path), binding=binding, st=st_name)
 
 
 def _finite(value, name: str, material_path: str):

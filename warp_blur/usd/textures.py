@@ -9,7 +9,8 @@ node's `fallback` value with a warning (USD's rule).
 Device layout (texture_lookup.py reads it): texels (N,) vec4 linear RGBA, all levels of all
 textures one after another; levels (NLev, 3) int [offset, width, height]; textures (NT, 4) int
 [first level, level count, wrapS, wrapT]; bindings (NB, BINDING_WIDTH) float [texture, output
-channel (0 rgb, 1 r, 2 g, 3 b, 4 a), scale rgba, bias rgba, UDIM flag]. A UDIM binding's texture
+channel (0 rgb, 1 r, 2 g, 3 b, 4 a), scale rgba, bias rgba, UDIM flag, texture-coordinate
+transform (a UsdTransform2d: st' = M st + t as m00 m01 m10 m11 tx ty), log2 of its scale]. A UDIM binding's texture
 is the first of 100 consecutive textures, tiles 1001..1100 (tile 1001 + u + 10 v), a missing tile
 a 1×1 texture of the node's fallback.
 """
@@ -27,7 +28,8 @@ from ..core.log import warn_once
 
 WRAP = {"repeat": 0, "mirror": 1, "clamp": 2, "black": 3, "useMetadata": 0}
 CHANNEL = {"rgb": 0, "r": 1, "g": 2, "b": 3, "a": 4}
-BINDING_WIDTH = 11
+BINDING_WIDTH = 18
+IDENTITY_ST = (1.0, 0.0, 0.0, 1.0, 0.0, 0.0)
 UDIM_TILES = 100        # tiles 1001..1100: 10 across, 10 up
 MAX_TEXTURE_SIDE = 8192
 
@@ -154,9 +156,14 @@ class TextureSet:
             self._append(chains.get(tile, blank), "clamp", "clamp")
         return base
 
-    def add_binding(self, texture: int, channel: str, scale, bias, udim: bool = False) -> int:
+    def add_binding(self, texture: int, channel: str, scale, bias, udim: bool = False,
+                    st_transform=IDENTITY_ST) -> int:
+        """A binding row; st_transform (m00, m01, m10, m11, tx, ty) maps the surface's texture
+        coordinates before the lookup (its area scale moves the mip level)."""
+        m = np.asarray(st_transform, np.float64)
+        area = abs(m[0] * m[3] - m[1] * m[2])
         row = [float(texture), float(CHANNEL.get(channel, 0)), *map(float, scale), *map(float, bias),
-               1.0 if udim else 0.0]
+               1.0 if udim else 0.0, *map(float, m), 0.5 * float(np.log2(max(area, 1e-30)))]
         self.bindings.append(row)
         return len(self.bindings) - 1
 
