@@ -162,3 +162,29 @@ def test_the_velocity_method_blurs_the_dome_with_the_camera_turn(scene_path):
     got = wb.render(path, frame=1, method="velocity", resolution=(w, w)).rgba[16, :, 0]
     sharp = wb.render(path, frame=1, method="velocity", resolution=(w, w), shutter=(0.0, 0.0)).rgba[16, :, 0]
     assert rmse(got, want) < 0.75 * rmse(sharp, want)
+
+
+def test_an_openexr_dome_is_read_linear_and_beyond_one(scene_path):
+    """A half-float EXR latlong map (red 4 s, green t: HDR, linear as stored) lights the background
+    as the PNG map does, without sRGB decoding: the centre pixel is 4 s, t at USD's view direction."""
+    import OpenEXR
+    path = _dome_stage(scene_path(), 100.0, 20.0)
+    w, h = 512, 256
+    s = (np.arange(w) + 0.5) / w
+    t = 1.0 - (np.arange(h) + 0.5) / h
+    rgb = np.zeros((h, w, 3), np.float16)
+    rgb[..., 0] = 4.0 * s[None, :]
+    rgb[..., 1] = t[:, None]
+    with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, {"RGB": rgb}) as f:
+        f.write(os.path.join(os.path.dirname(path), "hdr_dome.exr"))
+    stage = Usd.Stage.Open(path)
+    UsdLux.DomeLight(stage.GetPrimAtPath("/World/Dome")).GetTextureFileAttr().Set(Sdf.AssetPath("./hdr_dome.exr"))
+    stage.GetRootLayer().Save()
+    cam = stage.GetPrimAtPath("/World/Cam")
+    d = UsdGeom.Xformable(cam).ComputeLocalToWorldTransform(Usd.TimeCode(1)).TransformDir(Gf.Vec3d(0, 0, -1))
+    d = np.array(d) / np.linalg.norm(np.array(d))
+    r = wb.render(path, frame=1, method="accumulation", samples=1, resolution=(33, 33))
+    assert not r.stats["warnings"]
+    centre = r.rgba[16, 16]
+    assert centre[0] == pytest.approx(4.0 * (0.5 - np.arctan2(d[0], d[2]) / (2 * np.pi)), abs=0.02)
+    assert centre[1] == pytest.approx(0.5 + np.arcsin(d[1]) / np.pi, abs=0.01)

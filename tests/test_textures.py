@@ -175,3 +175,22 @@ def test_usd_transform2d_maps_the_texture_coordinates(scene_path, nodes, want):
         edge |= want(ss + dx / 64.0, tt + dy / 64.0).astype(float) != expected
     assert (~edge).sum() > 200
     np.testing.assert_allclose(got[~edge], expected[~edge], atol=0.02)
+
+
+def test_openexr_images_decode_grey_rgba_and_non_finite_values(tmp_path):
+    """EXR textures: a Y-only image becomes grey with alpha 1; NaN reads 0 and inf the largest
+    half float, so no non-finite value reaches a kernel."""
+    import OpenEXR
+
+    from warp_blur.usd.textures import EXR_MAGIC, _exr_rgba
+    y = np.array([[0.25, np.nan], [np.inf, 3.0]], np.float32)
+    path = str(tmp_path / "grey.exr")
+    with OpenEXR.File({"compression": OpenEXR.NO_COMPRESSION, "type": OpenEXR.scanlineimage}, {"Y": y}) as f:
+        f.write(path)
+    with open(path, "rb") as f:
+        data = f.read()
+    assert data[:4] == EXR_MAGIC
+    rgba = _exr_rgba(data)
+    np.testing.assert_allclose(rgba[..., 0], [[0.25, 0.0], [65504.0, 3.0]])
+    np.testing.assert_allclose(rgba[..., 1], rgba[..., 0])
+    np.testing.assert_allclose(rgba[..., 3], 1.0)

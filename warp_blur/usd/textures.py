@@ -1,7 +1,7 @@
 """UsdUVTexture images into one texel atlas with mip levels, for the kernels' filtered lookups.
 
 Images are read through USD's asset resolver (so files inside a `.usdz` package are found as
-USD finds them) and decoded by Pillow; 8-bit colour channels in sRGB (`sourceColorSpace` sRGB,
+USD finds them) and decoded by Pillow (OpenEXR files by OpenEXR: linear, as stored); 8-bit colour channels in sRGB (`sourceColorSpace` sRGB,
 or `auto` for an 8-bit image) are made linear before filtering, alpha stays linear. Each texture
 keeps a box-filtered mip chain down to 1×1. A texture that cannot be read falls back to the
 node's `fallback` value with a warning (USD's rule).
@@ -77,11 +77,15 @@ def read_image(resolved_path: str, color_space: str) -> list[np.ndarray] | None:
         asset = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved_path))
         if asset is None:
             raise OSError("not found")
-        with Image.open(io.BytesIO(asset.GetBuffer())) as im:
-            if max(im.size) > MAX_TEXTURE_SIDE:
-                im.thumbnail((MAX_TEXTURE_SIDE, MAX_TEXTURE_SIDE))
-            eight_bit = im.mode in ("L", "LA", "RGB", "RGBA", "P", "1")
-            rgba = np.asarray(im.convert("RGBA"), np.float32) / 255.0 if eight_bit else _float_rgba(im)
+        data = bytes(asset.GetBuffer())
+        if data[:4] == EXR_MAGIC:       # OpenEXR (HDR dome maps, float textures): linear already
+            rgba, eight_bit = _exr_rgba(data), False
+        else:
+            with Image.open(io.BytesIO(data)) as im:
+                if max(im.size) > MAX_TEXTURE_SIDE:
+                    im.thumbnail((MAX_TEXTURE_SIDE, MAX_TEXTURE_SIDE))
+                eight_bit = im.mode in ("L", "LA", "RGB", "RGBA", "P", "1")
+                rgba = np.asarray(im.convert("RGBA"), np.float32) / 255.0 if eight_bit else _float_rgba(im)
         srgb = color_space == "sRGB" or (color_space == "auto" and eight_bit)
         if srgb:
             rgba[..., :3] = srgb_to_linear(rgba[..., :3])
@@ -92,6 +96,33 @@ def read_image(resolved_path: str, color_space: str) -> list[np.ndarray] | None:
     with _cache_lock:
         _image_cache[key] = levels
     return levels
+
+
+EXR_MAGIC = b"\x76\x2f\x31\x01"
+
+
+def _exr_rgba(data: bytes) -> np.ndarray:
+    """(H, W, 4) float32 RGBA of an OpenEXR image in memory (its first part): RGB(A), or Y as grey;
+    alpha 1 when absent; NaN made 0 and infinities the largest half float; larger than
+    MAX_TEXTURE_SIDE, box-reduced by a whole factor."""
+    import OpenEXR
+    with OpenEXR.File(io.BytesIO(data)) as f:
+        channels = {k: np.asarray(v.pixels, np.float32) for k, v in f.channels().items()}
+    if "RGBA" in channels:
+        rgba = channels["RGBA"]
+    elif "RGB" in channels:
+        rgb = channels["RGB"]
+        rgba = np.concatenate([rgb, np.ones(rgb.shape[:2] + (1,), np.float32)], axis=2)
+    else:
+        grey = channels.get("Y", channels.get("R", next(iter(channels.values()))))
+        grey = grey if grey.ndim == 2 else grey[..., 0]
+        rgba = np.stack([grey, grey, grey, channels.get("A", np.ones_like(grey))], axis=2)
+    rgba = np.nan_to_num(rgba, nan=0.0, posinf=65504.0, neginf=-65504.0)
+    factor = int(np.ceil(max(rgba.shape[:2]) / MAX_TEXTURE_SIDE))
+    if factor > 1:
+        h, w = (rgba.shape[0] // factor) * factor, (rgba.shape[1] // factor) * factor
+        rgba = rgba[:h, :w].reshape(h // factor, factor, w // factor, factor, 4).mean(axis=(1, 3))
+    return np.ascontiguousarray(rgba, np.float32)
 
 
 def _float_rgba(im) -> np.ndarray:
