@@ -1,7 +1,8 @@
 """UsdUVTexture images into one texel atlas with mip levels, for the kernels' filtered lookups.
 
 Images are read through USD's asset resolver (so files inside a `.usdz` package are found as
-USD finds them) and decoded by Pillow (OpenEXR files by OpenEXR: linear, as stored); 8-bit colour channels in sRGB (`sourceColorSpace` sRGB,
+USD finds them) and decoded by Pillow (OpenEXR files by OpenEXR and Radiance `.hdr` by rgbe.py:
+linear, as stored); 8-bit colour channels in sRGB (`sourceColorSpace` sRGB,
 or `auto` for an 8-bit image) are made linear before filtering, alpha stays linear. Each texture
 keeps a box-filtered mip chain down to 1×1. A texture that cannot be read falls back to the
 node's `fallback` value with a warning (USD's rule).
@@ -25,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.log import warn_once
+from .rgbe import is_rgbe, read_rgbe
 
 WRAP = {"repeat": 0, "mirror": 1, "clamp": 2, "black": 3, "useMetadata": 0}
 CHANNEL = {"rgb": 0, "r": 1, "g": 2, "b": 3, "a": 4}
@@ -80,6 +82,8 @@ def read_image(resolved_path: str, color_space: str) -> list[np.ndarray] | None:
         data = bytes(asset.GetBuffer())
         if data[:4] == EXR_MAGIC:       # OpenEXR (HDR dome maps, float textures): linear already
             rgba, eight_bit = _exr_rgba(data), False
+        elif is_rgbe(data):             # Radiance .hdr: linear
+            rgba, eight_bit = _shrunk(read_rgbe(data)), False
         else:
             with Image.open(io.BytesIO(data)) as im:
                 if max(im.size) > MAX_TEXTURE_SIDE:
@@ -118,6 +122,11 @@ def _exr_rgba(data: bytes) -> np.ndarray:
         grey = grey if grey.ndim == 2 else grey[..., 0]
         rgba = np.stack([grey, grey, grey, channels.get("A", np.ones_like(grey))], axis=2)
     rgba = np.nan_to_num(rgba, nan=0.0, posinf=65504.0, neginf=-65504.0)
+    return _shrunk(rgba)
+
+
+def _shrunk(rgba: np.ndarray) -> np.ndarray:
+    """(H, W, 4) float32 box-reduced by a whole factor until no side exceeds MAX_TEXTURE_SIDE."""
     factor = int(np.ceil(max(rgba.shape[:2]) / MAX_TEXTURE_SIDE))
     if factor > 1:
         h, w = (rgba.shape[0] // factor) * factor, (rgba.shape[1] // factor) * factor
