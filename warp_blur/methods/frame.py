@@ -254,9 +254,10 @@ class FrameContext:
 
     def static_geometry(self, snapshots: list[Snapshot], knot: int,
                         triangles: np.ndarray | None = None,
-                        velocities: np.ndarray | None = None) -> tuple[Geometry, TileBins]:
+                        velocities: np.ndarray | None = None, cull: bool = True) -> tuple[Geometry, TileBins]:
         """Geometry with all snapshots as knots, and static entries at `knot` for visible triangles
-        (of `triangles`, a (T,) mask, when given), moving with `velocities` for shadow lookups."""
+        (of `triangles`, a (T,) mask, when given), moving with `velocities` for shadow lookups;
+        back faces that cannot show dropped unless cull is False (raster/culling.py)."""
         positions = np.stack([s.positions for s in snapshots])
         normals = np.stack([s.normals for s in snapshots]) if self.scene.any_smooth else None
         visible = snapshots[knot].tri_visible
@@ -265,7 +266,7 @@ class FrameContext:
         tris = np.nonzero(visible)[0].astype(np.int32)
         k = np.full(len(tris), knot, np.int32)
         sc = self.scene
-        hidden = hidden_back_faces(positions[knot:knot + 1], sc.tri_vertices, sc.tri_object, sc.tri_closed, tris,
+        hidden = np.zeros(len(tris), bool) if not cull else hidden_back_faces(positions[knot:knot + 1], sc.tri_vertices, sc.tri_object, sc.tri_closed, tris,
                                    k * 0, k * 0, self.proj.near, self.proj.far, self.proj.orthographic)
         tris, k = tris[~hidden], k[~hidden]
         self.counters["back_faces_dropped"] = int(hidden.sum())
@@ -273,14 +274,15 @@ class FrameContext:
         return make_geometry(self.tables, positions, normals, tris, k, k, velocities), bins
 
     def sharp_pass(self, snapshot: Snapshot, weight: float, rgba: wp.array, pixels: np.ndarray | None = None,
-                   record: bool = False, triangles: np.ndarray | None = None) -> "RecordedHits | None":
+                   record: bool = False, triangles: np.ndarray | None = None,
+                   cull: bool = True) -> "RecordedHits | None":
         """rgba += weight × the sharp image of one instant (only at `pixels`, flat indices, if
         given, from only `triangles`, a (T,) mask, when the caller knows the others cannot show
         there). With record, returns each listed pixel's hits for reshade_pass."""
         if pixels is not None and len(pixels) == 0:
             return None
         sh = self.shading([snapshot])
-        geo, bins = self.static_geometry([snapshot], 0, triangles, self.receiver_velocities(snapshot))
+        geo, bins = self.static_geometry([snapshot], 0, triangles, self.receiver_velocities(snapshot), cull)
         view, b = self.view(bins), make_bins(bins, self.device)
         u = self.snapshot_fraction(snapshot)   # static entries ignore it; shadow maps shared over time use it
         dev = self.device

@@ -256,7 +256,7 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
         if ctx.scene.any_fractional:
             sharp = presence_passes(ctx, view, geo, sh, b, u, sharp)
     else:
-        ctx.sharp_pass(center, 1.0, sharp)
+        ctx.sharp_pass(center, 1.0, sharp, cull=not s.velocity_extrude)   # extruded trails fold surfaces
         with ctx.timed("velocity"):
             launch_pixels(render_depth_motion, ctx.num_pixels,
                           lambda first, _n: [view, geo, b, u, 0, 2, first, depth_w, motion_w], dev, s.threads)
