@@ -166,3 +166,20 @@ def test_authored_creases_are_read_per_crease_and_per_edge(tmp_path):
     mesh.GetCreaseSharpnessesAttr().Set([2.0, 1.0, 0.5])     # one per crease edge
     edges, _ = crease_tables(mesh, Usd.TimeCode(0), 8)
     assert edges == {(0, 1): 2.0, (1, 3): 1.0, (4, 5): 0.5}
+
+
+def test_the_level_follows_the_meshs_size_on_screen(scene_path):
+    """With the image known, a subdivision mesh is refined until its faces are about 4 px across,
+    within the stage's budget level: the same cube is level 2 filling a 256-px image, level 1 as a
+    speck in a 16-px one; without a projection the budget level holds."""
+    from warp_blur.usd.scene import Scene
+    from warp_blur.usd.stage import Shutter, choose_camera, open_stage, projection_at
+    path = _cube_stage(scene_path(), "catmullClark")
+    stage = open_stage(path)
+    cam = choose_camera(stage, None)
+    tris = {}
+    for name, proj in (("none", None), ("big", projection_at(cam, 1.0, (256, 192))),
+                       ("speck", projection_at(cam, 1.0, (16, 12)))):
+        tris[name] = Scene(stage, cam, 1.0, Shutter(1.0, 1.0), proj=proj).num_triangles
+    assert tris["none"] == tris["big"] == 2 * 96        # level 2: 96 quads
+    assert tris["speck"] == 2 * 24                       # level 1: 24 quads

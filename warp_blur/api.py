@@ -114,7 +114,7 @@ class Renderer:
         shutter = shutter_for_frame(self.stage, self.camera, frame, s.shutter)
         t0 = time.perf_counter()
         progress.stage("load")
-        scene = Scene(self.stage, self.camera, frame, shutter, skip_invalid=s.skip_invalid)
+        scene = Scene(self.stage, self.camera, frame, shutter, skip_invalid=s.skip_invalid, proj=proj)
         if not scene.units:
             raise StageError(f"the stage {self.scene_path} has no renderable geometry "
                              f"(meshes, implicit gprims or point instancers)")

@@ -22,7 +22,7 @@ from .materials import CODE_CORNER_OPACITY, MaterialTable
 from .curves import curves_unit_fields
 from .points import derived_points_fn, points_unit_fields
 from .normals import authored_normals_fn, split_normals_fn, transform_normals, vertex_normals, vertex_normals_since
-from .subdivision import mesh_refinement, stage_level, refined_surface_primvars, refined_triangles
+from .subdivision import mesh_refinement, refined_surface_primvars, refined_triangles, screen_level, stage_level
 from .skinning import Skins, skinned_points_fn
 from .stage import Shutter
 from .primvars import corner_primvar
@@ -100,8 +100,9 @@ class Scene:
     """
 
     def __init__(self, stage: Usd.Stage, camera: UsdGeom.Camera, frame: float, shutter: Shutter,
-                 skip_invalid: bool = False) -> None:
+                 skip_invalid: bool = False, proj=None) -> None:
         self.stage = stage
+        self.proj = proj   # the image's Projection when known: subdivision levels follow screen size
         self.camera = camera
         self.frame = frame
         self.shutter = shutter
@@ -249,6 +250,14 @@ class Scene:
                 return None
         return points_at
 
+    def _mesh_level(self, prim: Usd.Prim, points_at: Callable[[float], np.ndarray]) -> int:
+        """The stage's budget level, lowered to what the mesh's size on screen needs (if known)."""
+        if self.proj is None or self._subdivision_level <= 1:
+            return self._subdivision_level
+        to_cam = np.array(self._xf_cache(self.frame).GetLocalToWorldTransform(prim)) @ self.cam_from_world(self.frame)
+        return screen_level(self.proj, points_at(self.frame), to_cam, UsdGeom.Mesh(prim), self.frame,
+                            self._subdivision_level)
+
     def _prim_transform_fn(self, prim: Usd.Prim):
         def transforms_at(time: float, cache: UsdGeom.XformCache) -> np.ndarray:
             return np.array(cache.GetLocalToWorldTransform(prim), np.float64)[None]
@@ -282,7 +291,8 @@ class Scene:
             flags |= FLAG_SMOOTH
         if smooth and not skin and not hasattr(self, "_subdivision_level"):
             self._subdivision_level = stage_level(self.stage, t)
-        refined = mesh_refinement(UsdGeom.Mesh(prim), t, npts, self._subdivision_level) if smooth and not skin else None
+        refined = mesh_refinement(UsdGeom.Mesh(prim), t, npts, self._mesh_level(prim, points_at)) \
+            if smooth and not skin else None
         if refined is not None:    # Catmull-Clark levels instead of the cage (subdivision.py)
             ref, counts, indices = refined
             tris, face_of_tri, corner_weights = refined_triangles(ref)

@@ -13,9 +13,10 @@ sharpness) stays put, blended by their mean sharpness below 1. Edges still sharp
 level (sharpness above the level count) shade hard: their points are copied per side, so smooth
 normals do not blend across them. Meshes with holes, a left-handed
 orientation or non-manifold edges are not refined (their cage is rendered, as before), nor are
-point-instancer prototypes and skinned meshes. The level is one for the
+point-instancer prototypes and skinned meshes. The level is capped for the
 stage: the highest (up to MAX_LEVEL) at which all its subdivision meshes together stay within
-SCENE_FACE_BUDGET faces (a triangle budget, not the meshes' size on screen). Primvars are
+SCENE_FACE_BUDGET faces; with the image known, each mesh takes the lowest level at which its faces
+are about TARGET_FACE_PX across on screen (screen_level). Primvars are
 carried per face corner, bilinearly within each cage face.
 """
 
@@ -30,6 +31,8 @@ from scipy import sparse
 #: most MAX_LEVEL levels): one level for the whole stage, so that its meshes look alike
 SCENE_FACE_BUDGET = 100_000
 MAX_LEVEL = 2
+#: with the image known, a mesh is refined only until its faces are about this many pixels across
+TARGET_FACE_PX = 4.0
 
 
 @dataclass(frozen=True)
@@ -210,6 +213,31 @@ def stage_level(stage, time) -> int:
                 faces += int(np.sum(counts)) if counts is not None else 0   # refined faces: one per corner
     level = 0
     while level < MAX_LEVEL and faces * 4 ** level <= SCENE_FACE_BUDGET:
+        level += 1
+    return level
+
+
+def screen_level(proj, local_points: np.ndarray, local_to_cam: np.ndarray, mesh, time: float, cap: int) -> int:
+    """The level (1..cap) of subdivision mesh `mesh` (a UsdGeom.Mesh; its face corners are its
+    level-1 faces) whose control points local_points (N, 3) go to camera space by local_to_cam
+    (4, 4, row vectors) under projection proj (core.camera.Projection): the lowest at which its
+    refined faces are at most TARGET_FACE_PX across over its on-screen box (the whole cap when a
+    point is not in front of the near plane)."""
+    counts = mesh.GetFaceVertexCountsAttr().Get(time)
+    corners = int(np.sum(counts)) if counts is not None else 0
+    cam_points = np.asarray(local_points, np.float64) @ local_to_cam[:3, :3] + local_to_cam[3, :3]
+    if cap <= 1 or len(cam_points) == 0 or corners <= 0:
+        return cap
+    if not proj.orthographic and (-cam_points[:, 2] < proj.near).any():
+        return cap
+    r = proj.project(cam_points)
+    if not np.isfinite(r).all():
+        return cap
+    w = np.clip(r[:, 0].max(), 0, proj.width) - np.clip(r[:, 0].min(), 0, proj.width)
+    h = np.clip(r[:, 1].max(), 0, proj.height) - np.clip(r[:, 1].min(), 0, proj.height)
+    area = max(float(w * h), 1.0)
+    level = 1
+    while level < cap and area / (corners * 4.0 ** (level - 1)) > TARGET_FACE_PX ** 2:
         level += 1
     return level
 
