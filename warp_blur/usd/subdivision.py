@@ -27,6 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import sparse
 
+from .loop import loop_refine
+
 #: refine while every subdivision mesh of the stage together stays under this many faces (and at
 #: most MAX_LEVEL levels): one level for the whole stage, so that its meshes look alike
 SCENE_FACE_BUDGET = 100_000
@@ -37,9 +39,10 @@ TARGET_FACE_PX = 4.0
 
 @dataclass(frozen=True)
 class Refinement:
-    """stencil: (N', N) sparse cage -> refined points; quads: (F', 4) refined vertex indices;
-    parent_face: (F',) cage face of each quad; corner_of: (F', 4, K) weights of each quad
-    corner over its cage face's corners (K = the most corners of a cage face, zero-padded)."""
+    """stencil: (N', N) sparse cage -> refined points; quads: (F', 4) refined vertex indices
+    ((F', 3) triangles for Loop); parent_face: (F',) cage face of each; corner_weights: (F', 4 or
+    3, K) weights of each corner over its cage face's corners (K = the most corners of a cage
+    face, zero-padded)."""
 
     stencil: sparse.csr_matrix
     quads: np.ndarray
@@ -208,7 +211,7 @@ def stage_level(stage, time) -> int:
     for prim in stage.Traverse(Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
         if prim.IsA(UsdGeom.Mesh):
             mesh = UsdGeom.Mesh(prim)
-            if mesh.GetSubdivisionSchemeAttr().Get(time) == UsdGeom.Tokens.catmullClark:
+            if mesh.GetSubdivisionSchemeAttr().Get(time) in (UsdGeom.Tokens.catmullClark, UsdGeom.Tokens.loop):
                 counts = mesh.GetFaceVertexCountsAttr().Get(time)
                 faces += int(np.sum(counts)) if counts is not None else 0   # refined faces: one per corner
     level = 0
@@ -326,8 +329,10 @@ def split_at_creases(quads: np.ndarray, creases: dict, n: int) -> tuple[np.ndarr
 
 def refined_triangles(ref: Refinement) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(tris (2F', 3) int32, parent cage face (2F',), corner weights (2F', 3, K)) of the refined
-    quads split along their 0-2 diagonal."""
+    quads split along their 0-2 diagonal (a Loop refinement's triangles as they are)."""
     q = ref.quads
+    if q.shape[1] == 3:
+        return q.astype(np.int32), ref.parent_face, ref.corner_weights
     tris = np.stack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]], axis=1).reshape(-1, 3).astype(np.int32)
     w = np.stack([ref.corner_weights[:, [0, 1, 2]], ref.corner_weights[:, [0, 2, 3]]], axis=1)
     return tris, np.repeat(ref.parent_face, 2), w.reshape(len(tris), 3, -1)
@@ -354,12 +359,14 @@ def refined_corner_primvar(prim, name: str, time, counts: np.ndarray, indices: n
 
 
 def mesh_refinement(mesh, time, num_points: int, levels: int):
-    """(Refinement, counts, indices) for a catmullClark UsdGeom.Mesh that can be refined here, else
-    None (other schemes, holes, non-manifold topology: its cage renders with smooth normals)."""
+    """(Refinement, counts, indices) for a catmullClark or loop UsdGeom.Mesh that can be refined
+    here, else None (bilinear, holes, non-manifold topology, a loop mesh with faces other than
+    triangles: its cage renders with smooth normals)."""
     from pxr import UsdGeom
 
     from ..core.log import warn_once
-    if levels < 1 or mesh.GetSubdivisionSchemeAttr().Get(time) != UsdGeom.Tokens.catmullClark:
+    scheme = mesh.GetSubdivisionSchemeAttr().Get(time)
+    if levels < 1 or scheme not in (UsdGeom.Tokens.catmullClark, UsdGeom.Tokens.loop):
         return None
     if len(mesh.GetHoleIndicesAttr().Get(time) or []):
         return None
@@ -368,6 +375,12 @@ def mesh_refinement(mesh, time, num_points: int, levels: int):
     if mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded:
         return None
     creases, corners = crease_tables(mesh, time, num_points)
+    if scheme == UsdGeom.Tokens.loop:
+        if creases or corners.any():
+            warn_once(f"loopcrease:{mesh.GetPath()}", f"{mesh.GetPath()}: creases and corners of a loop mesh are "
+                                                      f"not read (smooth Loop rules)")
+        out = loop_refine(counts, indices, num_points, levels)
+        return None if out is None else (Refinement(out[0], out[1], out[2], out[3], levels), counts, indices)
     ref = refine(counts, indices, num_points, levels, creases, corners)
     return None if ref is None else (ref, counts, indices)
 
