@@ -108,6 +108,18 @@ def test_translating_occluder_blurs_its_shadow_like_accumulation_with_direct_map
     assert penumbra(lum_ref) > 3 * penumbra(lum_sharp)
 
 
+def test_a_still_receiver_hidden_part_of_the_shutter_averages_its_shadow_where_seen(scene_path):
+    """The occluder moves along the view, so ground pixels it hides at some instants lie in its
+    moving shadow at others: a still receiver's shadow must be averaged over the time slots in
+    which it is seen, not over its whole interval (0.0126 from accumulation when it was)."""
+    path = shadow_stage(scene_path(), occluder_samples={0.5: (0.0, 1.0, -1.0), 1.5: (0.0, 1.0, 1.0)})
+    reference = render(path, "accumulation", samples=128, shadows="warped")
+    bitmask = render(path, "analytic", shadows="warped")          # 128 time bits: accumulation-128
+    assert rmse(bitmask.rgba, reference.rgba) < 2e-4               # measured 1e-6
+    exact = render(path, "analytic", shadows="warped", time_bits=0)
+    assert rmse(exact.rgba, reference.rgba) < 0.0015               # measured 0.00057
+
+
 def test_direct_and_warped_accumulation_agree_on_a_moving_occluder(scene_path):
     path = shadow_stage(scene_path(), occluder_samples=MOVING)
     direct = render(path, "accumulation", samples=16, shadows="direct")

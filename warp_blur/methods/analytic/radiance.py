@@ -44,6 +44,16 @@ def span_radiance(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: 
 
 
 @wp.func
+def short_radiance(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
+                   s: float, span: float) -> wp.vec3:
+    """Radiance at entry time s with shadows averaged over `span` (shutter fraction) around it."""
+    a = m.a0 + s * (m.a1 - m.a0)
+    b = m.b0 + s * (m.b1 - m.b0)
+    c = m.c0 + s * (m.c1 - m.c0)
+    return shade_entry_hit_span(view, geo, sh, e, s, m.u0 + s * (m.u1 - m.u0), span, o, d, plane_hit(o, d, a, b, c))
+
+
+@wp.func
 def entry_emissive_only(geo: Geometry, sh: Shading, e: int) -> int:
     """1 when entry e's material reflects nothing (its radiance is its constant emission)."""
     mat = geo.tri_material[geo.entry_tri[e]]
@@ -51,6 +61,15 @@ def entry_emissive_only(geo: Geometry, sh: Shading, e: int) -> int:
         if wp.length(wp.vec3(sh.materials[mat, 0], sh.materials[mat, 1], sh.materials[mat, 2])) == 0.0:
             if wp.length(wp.vec3(sh.materials[mat, 6], sh.materials[mat, 7], sh.materials[mat, 8])) == 0.0:
                 return 1
+    return 0
+
+
+@wp.func
+def static_receiver(geo: Geometry, sh: Shading, e: int, lights_static: int) -> int:
+    """1 when entry e is a still, reflecting surface under lights that hold still (its radiance
+    changes over the shutter only where shadows move)."""
+    if lights_static != 0 and geo.entry_k0[e] == geo.entry_k1[e]:
+        return 1 - entry_emissive_only(geo, sh, e)
     return 0
 
 

@@ -21,8 +21,9 @@ import warp as wp
 
 from ...kernels.dome import dome_along, dome_at, dome_over
 from ...kernels.kernel_types import Geometry, Shading, View
-from .moving import entry_moving, entry_time, sample_ray
-from .radiance import boundary_radiance, lerp_in_time, radiance_plan, sub_piece_time
+from .moving import Moving, entry_moving, entry_time, sample_ray
+from .radiance import (boundary_radiance, lerp_in_time, radiance_plan, short_radiance, span_radiance, static_receiver,
+                       sub_piece_time)
 
 WORD_ALL = wp.constant(wp.uint32(0xFFFFFFFF))
 # bits whose index has bit 0, 1, 2, 3, 4 set (module constants: inline literals above 2**31 make
@@ -32,6 +33,8 @@ INDEX_BIT_1 = wp.constant(wp.uint32(0xCCCCCCCC))
 INDEX_BIT_2 = wp.constant(wp.uint32(0xF0F0F0F0))
 INDEX_BIT_3 = wp.constant(wp.uint32(0xFF00FF00))
 INDEX_BIT_4 = wp.constant(wp.uint32(0xFFFF0000))
+#: intervals at most this long (shutter fraction) are shaded once, at their visible slots' mean
+SHORT_SPAN = wp.constant(1.0 / 16.0)
 
 
 @wp.func
@@ -108,6 +111,30 @@ def slot_sums(masks: wp.array2d(dtype=wp.uint32), row: int, col: int, j0: int, j
 
 
 @wp.func
+def shadow_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3, t: wp.vec2,
+                  bits: int, masks: wp.array2d(dtype=wp.uint32), row: int, col: int) -> wp.vec3:
+    """A constant-radiance interval (entry e, span t) whose shadows vary, over its visible slots
+    (set bits of masks[row, col:]), / bits: shadow visibility is linear in time between the maps'
+    instants, so each piece between them adds its visible slots × the radiance at their mean time."""
+    times = sh.shadow_times
+    color = wp.vec3(0.0, 0.0, 0.0)
+    lo = t[0]
+    for b in range(times + 1):
+        hi = t[1]
+        if b < times:
+            hi = wp.min((float(b) + 0.5) / float(times), t[1])
+        if hi > lo:
+            slots = span_slots(lo, hi, bits)
+            sums = slot_sums(masks, row, col, slots[0], slots[1])
+            if sums[0] > 0:
+                t_mean = (float(sums[1]) / float(sums[0]) + 0.5) / float(bits)
+                share = float(sums[0]) / float(bits)
+                color = color + short_radiance(view, geo, sh, e, m, o, d, entry_time(m, t_mean), 0.0) * share
+            lo = hi
+    return color
+
+
+@wp.func
 def visible_radiance(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, t: wp.vec2,
                      n_shade_max: int, lights_static: int, bits: int, masks: wp.array2d(dtype=wp.uint32), row: int,
                      col: int) -> wp.vec3:
@@ -116,6 +143,19 @@ def visible_radiance(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3,
     (its visible slots) × its radiance at their mean time; sub-piece ends are shaded only for
     sub-pieces with visible slots."""
     m = entry_moving(geo, e)
+    if n_shade_max > 1 and sh.shadow_times > 1 and static_receiver(geo, sh, e, lights_static) != 0:
+        # still surface under moving shadows: averaged over the visible slots only, not the span
+        slots = span_slots(t[0], t[1], bits)
+        if slot_sums(masks, row, col, slots[0], slots[1])[0] < slots[1] - slots[0]:
+            return shadow_pieces(view, geo, sh, e, m, o, d, t, bits, masks, row, col)
+    if t[1] - t[0] <= SHORT_SPAN and n_shade_max > 1:
+        # short: one shading at the visible slots' mean time, shadows over their extent
+        slots = span_slots(t[0], t[1], bits)
+        sums = slot_sums(masks, row, col, slots[0], slots[1])
+        t_mean = (float(sums[1]) / float(sums[0]) + 0.5) / float(bits)
+        share = float(sums[0]) / float(bits)
+        s_m = entry_time(m, t_mean)
+        return short_radiance(view, geo, sh, e, m, o, d, s_m, share) * share
     s_a = entry_time(m, t[0])
     s_b = entry_time(m, t[1])
     n, linear, la, lm, lb = radiance_plan(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, lights_static)
@@ -153,6 +193,9 @@ def span_mean(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.
     m = entry_moving(geo, e)
     s_a = entry_time(m, t[0])
     s_b = entry_time(m, t[1])
+    if b > a and n_shade_max > 1 and sh.shadow_times > 1 and static_receiver(geo, sh, e, lights_static) != 0:
+        # still surface under moving shadows: shadows averaged over [a, b], not the whole span
+        return span_radiance(view, geo, sh, e, m, o, d, entry_time(m, a), entry_time(m, b))
     n, linear, la, lm, lb = radiance_plan(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, lights_static)
     if linear == 0:
         return la
