@@ -35,7 +35,7 @@ from tqdm import tqdm
 
 sys.path.insert(0, os.path.dirname(__file__))
 from bench_tradeoff import TARGETS, time_to_error  # noqa: E402
-from common import OUT, ROOT, SCENES, table, timed_median  # noqa: E402
+from common import OUT, ROOT, SCENES, pyplot, table, timed_median  # noqa: E402
 from references import reference  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -190,9 +190,9 @@ def main() -> None:
 
 
 def _plot(rows: list[dict], scenes: list[str], path: str) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
+    if plt is None:
+        return
     fig, axes = plt.subplots(1, len(scenes), figsize=(4.4 * len(scenes), 3.8), squeeze=False)
     for ax, name in zip(axes[0], scenes):
         for m in ("analytic", "stochastic", "accumulation", "cycles"):

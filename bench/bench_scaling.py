@@ -22,7 +22,7 @@ from tqdm import tqdm
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(os.path.dirname(HERE), "stages"))
-from common import OUT, save, table  # noqa: E402
+from common import OUT, pyplot, save, table  # noqa: E402
 
 METHOD_SETTINGS = {"analytic": {}, "stochastic": {"samples": 16}, "accumulation": {"samples": 16},
                    "velocity": {}}
@@ -118,9 +118,9 @@ def main() -> None:
 
 
 def _plot(rows, methods, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
+    if plt is None:
+        return
     axes_names = ["triangles", "resolution", "motion_px", "depth_layers"]
     fig, axes = plt.subplots(2, 4, figsize=(16, 7))
     for col, axis in enumerate(axes_names):

@@ -19,7 +19,7 @@ import sys
 from tqdm import tqdm
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import OUT, SCENES, table, timed_median  # noqa: E402
+from common import OUT, SCENES, pyplot, table, timed_median  # noqa: E402
 from references import reference  # noqa: E402
 
 import warp_blur as wb  # noqa: E402
@@ -133,14 +133,15 @@ def main() -> None:
     print()
     cols = ["scene", "target_rmse"] + [f"t_{m}" for m in plan] + [f"analytic_speedup_vs_{m}" for m in plan if m != "analytic"]
     print(table(summary, cols))
-    _plot(rows, chosen, plan, os.path.join(OUT, "tradeoff.png"))
-    print("wrote", os.path.join(OUT, "tradeoff.csv"), "tradeoff.json", "tradeoff.png")
+    wrote = _plot(rows, chosen, plan, os.path.join(OUT, "tradeoff.png"))
+    print("wrote", os.path.join(OUT, "tradeoff.csv"), "tradeoff.json", *(["tradeoff.png"] if wrote else []))
 
 
-def _plot(rows, chosen, plan, path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+def _plot(rows, chosen, plan, path) -> bool:
+    """The Pareto plot (seconds against RMSE per scene); False without matplotlib."""
+    plt = pyplot()
+    if plt is None:
+        return False
     fig, axes = plt.subplots(1, len(chosen), figsize=(4.2 * len(chosen), 3.8), squeeze=False)
     for ax, (name, *_) in zip(axes[0], chosen):
         for m in plan:
@@ -154,6 +155,7 @@ def _plot(rows, chosen, plan, path) -> None:
     axes[0][0].legend()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+    return True
 
 
 if __name__ == "__main__":

@@ -47,3 +47,16 @@ def save(name: str, data) -> str:
     with open(path, "w") as f:
         json.dump(data, f, indent=2, default=str)
     return path
+
+
+def pyplot():
+    """matplotlib.pyplot on the Agg backend, or None (with a message) when matplotlib is missing:
+    a bench still prints and saves its tables without the `bench` extra."""
+    try:
+        import matplotlib
+    except ImportError:
+        print("no plot: matplotlib is not installed (pip install -e '.[bench]')")
+        return None
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
