@@ -8,7 +8,8 @@ An interval [s_a, s_b] (entry times) of entry e is shaded
   curving radiance (off linear by c / n² per sub-piece) within 1/1024 of each sub-piece's line;
 - or as one constant (emissive-only material, a static surface under static lights, or one
   shading sample): the radiance in its middle, shadows averaged over its shutter span (a static
-  receiver sees a moving shadow's whole time average).
+  receiver seen for all of it sees a moving shadow's whole time average; the resolve averages a
+  partly hidden one over the times it is seen, and shades a short interval once).
 """
 
 from __future__ import annotations

@@ -6,7 +6,9 @@ nearest depth; for each interval I in that order, the slots where a *later* inte
 front of I (their depth lines cross inside the common span: the crossing time splits the span)
 are "stolen" from I. I's visible slots are bits(I) & ~covered & ~stolen; only then is I shaded
 (radiance.py): each of its linear sub-pieces contributes (its visible slots)/B × its radiance at
-their mean time. I marks bits(I) & ~stolen covered; the loop stops when every slot is covered.
+their mean time (an interval at most SHORT_SPAN long: one shading at that mean; a still
+surface under moving shadows that is partly hidden: one per piece between the shadow maps'
+instants, shadow_pieces). I marks bits(I) & ~stolen covered; the loop stops when every slot is covered.
 The background fills the uncovered slots; alpha is the covered share.
 
 Exact mode (time_bits 0): a sweep over time keeps the covered time as exact spans: at each event
