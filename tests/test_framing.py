@@ -69,3 +69,23 @@ def test_a_missing_named_camera_stays_an_error(scene_path):
     path = _box_stage(scene_path(), "Y")
     with pytest.raises(StageError, match="not found"):
         wb.render(path, frame=1, camera="/World/NoSuchCam", resolution=(32, 24))
+
+
+def test_unframeable_geometry_reports_what_is_wrong_with_it(scene_path):
+    """An instancer whose indices leave its prototypes has no bounds (USD's BBoxCache gives none):
+    the error names the instancer, not a missing camera; an empty stage stays a framing error."""
+    stage = new_stage(scene_path())
+    inst = UsdGeom.PointInstancer.Define(stage, "/World/Inst")
+    UsdGeom.Cube.Define(stage, "/World/Inst/Proto")
+    inst.CreatePrototypesRel().SetTargets(["/World/Inst/Proto"])
+    inst.CreateProtoIndicesAttr([0, 5])
+    inst.CreatePositionsAttr([(0, 0, 0), (2, 0, 0)])
+    stage.GetRootLayer().Save()
+    path = stage.GetRootLayer().realPath
+    with pytest.raises(StageError, match="/World/Inst.*protoIndices"):
+        wb.render(path, frame=1, resolution=(32, 24))
+    empty = new_stage(scene_path())
+    UsdGeom.Xform.Define(empty, "/World")
+    empty.GetRootLayer().Save()
+    with pytest.raises(StageError, match="no geometry to frame"):
+        wb.render(empty.GetRootLayer().realPath, frame=1, resolution=(32, 24))

@@ -63,12 +63,20 @@ def framing_pose(bounds: Gf.Range3d, up_axis: str, aspect: float) -> tuple[np.nd
     return xf, near, far
 
 
+def has_geometry(stage: Usd.Stage) -> bool:
+    """True when the stage holds a gprim or a point instancer (renderable or not)."""
+    return any(p.IsA(UsdGeom.Gprim) or p.IsA(UsdGeom.PointInstancer) for p in stage.Traverse())
+
+
 def define_framing_camera(stage: Usd.Stage) -> UsdGeom.Camera:
     """The framing camera prim (created once in the session layer; placed by place_framing_camera)."""
     prim = stage.GetPrimAtPath(FRAMING_CAMERA_PATH)
     if prim and prim.IsA(UsdGeom.Camera):
         return UsdGeom.Camera(prim)
-    if stage_bounds(stage, stage.GetStartTimeCode()) is None and stage_bounds(stage, Usd.TimeCode.Default()) is None:
+    if stage_bounds(stage, stage.GetStartTimeCode()) is None and stage_bounds(stage, Usd.TimeCode.Default()) is None \
+            and not has_geometry(stage):
+        # geometry without finite bounds (e.g. an instancer whose indices are out of range) is framed
+        # as a unit box, so that loading it reports what is wrong with it
         raise StageError("the stage has no camera and no geometry to frame (add a UsdGeom.Camera or pass --camera)")
     with Usd.EditContext(stage, stage.GetSessionLayer()):
         cam = UsdGeom.Camera.Define(stage, Sdf.Path(FRAMING_CAMERA_PATH))
