@@ -17,41 +17,34 @@ from __future__ import annotations
 import warp as wp
 
 from ...kernels.kernel_types import Geometry, Shading, View
-from ...kernels.shading import max_component, shade_entry_hit, shade_entry_hit_span
+from ...kernels.shading import max_component, shade_entry_hit_span
 from .moving import Moving, plane_hit
 
 SHADE_TOLERANCE = wp.constant(1.0 / 256.0)
 
 
 @wp.func
-def shade_at(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s: float) -> wp.vec3:
-    """Radiance of entry e (its triangle m) seen along the ray at entry time s."""
+def radiance_at(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s: float,
+                span: float) -> wp.vec3:
+    """Radiance of entry e (its triangle m) seen along the ray at entry time s, with shadows
+    averaged over `span` (shutter fraction) around it (0: at that instant)."""
     a = m.a0 + s * (m.a1 - m.a0)
     b = m.b0 + s * (m.b1 - m.b0)
     c = m.c0 + s * (m.c1 - m.c0)
-    return shade_entry_hit(view, geo, sh, e, s, m.u0 + s * (m.u1 - m.u0), o, d, plane_hit(o, d, a, b, c))
+    return shade_entry_hit_span(view, geo, sh, e, s, m.u0 + s * (m.u1 - m.u0), span, o, d, plane_hit(o, d, a, b, c))
+
+
+@wp.func
+def shade_at(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s: float) -> wp.vec3:
+    """Radiance of entry e (its triangle m) seen along the ray at entry time s."""
+    return radiance_at(view, geo, sh, e, m, o, d, s, 0.0)
 
 
 @wp.func
 def span_radiance(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
                   s0: float, s1: float) -> wp.vec3:
     """Radiance of [s0, s1] at its middle, with shadows averaged over its shutter span."""
-    du = m.u1 - m.u0
-    sm = 0.5 * (s0 + s1)
-    a = m.a0 + sm * (m.a1 - m.a0)
-    b = m.b0 + sm * (m.b1 - m.b0)
-    c = m.c0 + sm * (m.c1 - m.c0)
-    return shade_entry_hit_span(view, geo, sh, e, sm, m.u0 + sm * du, (s1 - s0) * du, o, d, plane_hit(o, d, a, b, c))
-
-
-@wp.func
-def short_radiance(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
-                   s: float, span: float) -> wp.vec3:
-    """Radiance at entry time s with shadows averaged over `span` (shutter fraction) around it."""
-    a = m.a0 + s * (m.a1 - m.a0)
-    b = m.b0 + s * (m.b1 - m.b0)
-    c = m.c0 + s * (m.c1 - m.c0)
-    return shade_entry_hit_span(view, geo, sh, e, s, m.u0 + s * (m.u1 - m.u0), span, o, d, plane_hit(o, d, a, b, c))
+    return radiance_at(view, geo, sh, e, m, o, d, 0.5 * (s0 + s1), (s1 - s0) * (m.u1 - m.u0))
 
 
 @wp.func

@@ -24,8 +24,8 @@ import warp as wp
 from ...kernels.dome import dome_along, dome_at, dome_over
 from ...kernels.kernel_types import Geometry, Shading, View
 from .moving import Moving, entry_moving, entry_time, sample_ray
-from .radiance import (boundary_radiance, lerp_in_time, radiance_plan, short_radiance, span_radiance, static_receiver,
-                       sub_piece_time)
+from .radiance import (boundary_radiance, lerp_in_time, radiance_at, radiance_plan, shade_at, span_radiance,
+                       static_receiver, sub_piece_time)
 
 WORD_ALL = wp.constant(wp.uint32(0xFFFFFFFF))
 # bits whose index has bit 0, 1, 2, 3, 4 set (module constants: inline literals above 2**31 make
@@ -131,7 +131,7 @@ def shadow_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: 
             if sums[0] > 0:
                 t_mean = (float(sums[1]) / float(sums[0]) + 0.5) / float(bits)
                 share = float(sums[0]) / float(bits)
-                color = color + short_radiance(view, geo, sh, e, m, o, d, entry_time(m, t_mean), 0.0) * share
+                color = color + shade_at(view, geo, sh, e, m, o, d, entry_time(m, t_mean)) * share
             lo = hi
     return color
 
@@ -145,19 +145,19 @@ def visible_radiance(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3,
     (its visible slots) × its radiance at their mean time; sub-piece ends are shaded only for
     sub-pieces with visible slots."""
     m = entry_moving(geo, e)
-    if n_shade_max > 1 and sh.shadow_times > 1 and static_receiver(geo, sh, e, lights_static) != 0:
-        # still surface under moving shadows: averaged over the visible slots only, not the span
-        slots = span_slots(t[0], t[1], bits)
-        if slot_sums(masks, row, col, slots[0], slots[1])[0] < slots[1] - slots[0]:
-            return shadow_pieces(view, geo, sh, e, m, o, d, t, bits, masks, row, col)
-    if t[1] - t[0] <= SHORT_SPAN and n_shade_max > 1:
-        # short: one shading at the visible slots' mean time, shadows over their extent
+    still = n_shade_max > 1 and sh.shadow_times > 1 and static_receiver(geo, sh, e, lights_static) != 0
+    short = n_shade_max > 1 and t[1] - t[0] <= SHORT_SPAN
+    if still or short:
         slots = span_slots(t[0], t[1], bits)
         sums = slot_sums(masks, row, col, slots[0], slots[1])
-        t_mean = (float(sums[1]) / float(sums[0]) + 0.5) / float(bits)
-        share = float(sums[0]) / float(bits)
-        s_m = entry_time(m, t_mean)
-        return short_radiance(view, geo, sh, e, m, o, d, s_m, share) * share
+        if still and sums[0] < slots[1] - slots[0]:
+            # still surface under moving shadows: averaged over the visible slots only, not the span
+            return shadow_pieces(view, geo, sh, e, m, o, d, t, bits, masks, row, col)
+        if short:
+            # short: one shading at the visible slots' mean time, shadows over their extent
+            t_mean = (float(sums[1]) / float(sums[0]) + 0.5) / float(bits)
+            share = float(sums[0]) / float(bits)
+            return radiance_at(view, geo, sh, e, m, o, d, entry_time(m, t_mean), share) * share
     s_a = entry_time(m, t[0])
     s_b = entry_time(m, t[1])
     n, linear, la, lm, lb = radiance_plan(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, lights_static)
