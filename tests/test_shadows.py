@@ -220,8 +220,24 @@ def test_still_occluders_render_once_under_a_still_light(scene_path, monkeypatch
     assert based.stats["shadow_still_triangles"] == 2          # the ground; both occluders move
     assert based.stats["shadow_maps_still_base"] == 1
     monkeypatch.setattr(shadow_maps.ShadowMaps, "_still_triangles",
-                        lambda self: np.zeros(len(self.tri_vertices), bool))
+                        lambda self, lay: np.zeros(len(self.tri_vertices), bool))
     full = render(path, method, **kw)
+    assert np.abs(based.rgba - full.rgba).max() < 1e-6
+
+
+def test_still_occluders_render_once_under_a_still_light_seen_from_a_moving_camera(scene_path, monkeypatch):
+    """Stillness is judged in the light's frame: a moving camera sees the still ground at new
+    camera-space positions every instant, yet it still renders once into the base map, and the
+    image equals rendering every triangle at every instant."""
+    from warp_blur.shadows import maps as shadow_maps
+    path = shadow_stage(scene_path(), occluder_samples=MOVING, mover=True,
+                        camera_samples={0.5: (-0.4, 4.0, 4.0), 1.5: (0.4, 4.0, 4.2)})
+    based = render(path, "analytic", shadows="direct")
+    assert based.stats["shadow_still_triangles"] == 2 and based.stats["shadow_maps_still_base"] == 1
+    monkeypatch.setattr(shadow_maps.ShadowMaps, "_still_triangles",
+                        lambda self, lay: np.zeros(len(self.tri_vertices), bool))
+    full = render(path, "analytic", shadows="direct")
+    assert "shadow_maps_still_base" not in full.stats
     assert np.abs(based.rgba - full.rgba).max() < 1e-6
 
 

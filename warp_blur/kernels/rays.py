@@ -74,18 +74,11 @@ def hit_from_edges(a: wp.vec3, b: wp.vec3, c: wp.vec3, e_ab: float, e_bc: float,
 
 
 @wp.func
-def intersect_triangle(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3, vi: wp.vec3i) -> wp.vec4:
-    """(hit 0/1, view depth, barycentric of b, barycentric of c) of the line o + t d and abc,
-    whose vertex indices are vi (they fix each shared edge's canonical orientation).
-
-    The caller checks depth against the near/far planes (which also rejects hits behind the eye).
-    """
-    ao = a - o
-    bo = b - o
-    co = c - o
-    c_ab = edge_cross(ao, bo, vi[0], vi[1])
-    c_bc = edge_cross(bo, co, vi[1], vi[2])
-    c_ca = edge_cross(co, ao, vi[2], vi[0])
+def hit_through_edges(d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3, c_ab: wp.vec3, c_bc: wp.vec3,
+                      c_ca: wp.vec3) -> wp.vec4:
+    """intersect_triangle's test for direction d, given the edges' cross products (edge_cross of
+    the origin-relative vertices): a perspective face, whose rays share one origin, computes them
+    once per triangle instead of once per texel."""
     e_ab = wp.dot(d, c_ab)
     e_bc = wp.dot(d, c_bc)
     e_ca = wp.dot(d, c_ca)
@@ -96,6 +89,20 @@ def intersect_triangle(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec
     if not (pos or neg):
         return wp.vec4(0.0, 0.0, 0.0, 0.0)
     return hit_from_edges(a, b, c, e_ab, e_bc, e_ca)
+
+
+@wp.func
+def intersect_triangle(o: wp.vec3, d: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3, vi: wp.vec3i) -> wp.vec4:
+    """(hit 0/1, view depth, barycentric of b, barycentric of c) of the line o + t d and abc,
+    whose vertex indices are vi (they fix each shared edge's canonical orientation).
+
+    The caller checks depth against the near/far planes (which also rejects hits behind the eye).
+    """
+    ao = a - o
+    bo = b - o
+    co = c - o
+    return hit_through_edges(d, a, b, c, edge_cross(ao, bo, vi[0], vi[1]), edge_cross(bo, co, vi[1], vi[2]),
+                             edge_cross(co, ao, vi[2], vi[0]))
 
 
 @wp.func

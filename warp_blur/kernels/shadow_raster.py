@@ -9,8 +9,8 @@ import warp as wp
 
 from .cutout import cutout_hides
 from .kernel_types import Bins, Geometry, View
-from .raster import box_rejects, centre_ray, nearest_at_centre
-from .rays import entry_vertex, intersect_triangle
+from .raster import box_rejects, centre_ray, nearest_at_centre, to_raster
+from .rays import edge_cross, entry_vertex, hit_through_edges, intersect_triangle
 
 
 @wp.kernel(enable_backward=False)
@@ -33,6 +33,42 @@ def render_shadow_texels(view: View, geo: Geometry, bins: Bins, first_pixel: int
         bary[pix] = wp.vec2(hit[2], hit[3])
 
 
+@wp.func
+def within(p: wp.vec3, limit: float) -> bool:
+    """True when raster point p's x and y are finite and within +-limit."""
+    return wp.abs(p[0]) < limit and wp.abs(p[1]) < limit
+
+
+@wp.func
+def row_span(a: wp.vec3, b: wp.vec3, c: wp.vec3, y: float) -> wp.vec2:
+    """(x min, x max) of triangle abc (raster x, y) on the line at height y, widened by a margin
+    far above float32 rounding (the exact hit test decides each texel); (1, 0) when the line
+    misses the triangle."""
+    lo = float(wp.inf)
+    hi = float(-wp.inf)
+    for k in range(3):
+        p = a
+        q = b
+        if k == 1:
+            p = b
+            q = c
+        elif k == 2:
+            p = c
+            q = a
+        if (p[1] - y) * (q[1] - y) <= 0.0:
+            if p[1] == q[1]:
+                lo = wp.min(lo, wp.min(p[0], q[0]))
+                hi = wp.max(hi, wp.max(p[0], q[0]))
+            else:
+                x = p[0] + (y - p[1]) * (q[0] - p[0]) / (q[1] - p[1])
+                lo = wp.min(lo, x)
+                hi = wp.max(hi, x)
+    if lo > hi:
+        return wp.vec2(1.0, 0.0)
+    margin = 1.0e-2 + 1.0e-5 * wp.max(wp.max(wp.abs(lo), wp.abs(hi)), wp.abs(y))
+    return wp.vec2(lo - margin, hi + margin)
+
+
 @wp.kernel(enable_backward=False)
 def splat_shadow_depth(view: View, geo: Geometry, bins: Bins, entries: wp.array(dtype=int), row_lo: int,
                        row_hi: int,
@@ -52,11 +88,33 @@ def splat_shadow_depth(view: View, geo: Geometry, bins: Bins, entries: wp.array(
     a = entry_vertex(geo, e, vi[0], 0.0)
     b = entry_vertex(geo, e, vi[1], 0.0)
     c = entry_vertex(geo, e, vi[2], 0.0)
+    # a perspective face's rays all start at the eye (the origin): the edges' cross products
+    # are the triangle's own, computed once (the same values intersect_triangle computes)
+    c_ab = edge_cross(a, b, vi[0], vi[1])
+    c_bc = edge_cross(b, c, vi[1], vi[2])
+    c_ca = edge_cross(c, a, vi[2], vi[0])
+    # the triangle in raster space (all vertices in front of the eye: its edges project to
+    # straight lines), so each row tests only the texels near its span, not the whole box
+    ra = to_raster(view, a)
+    rb = to_raster(view, b)
+    rc = to_raster(view, c)
+    spans = ra[2] > 0.0 and rb[2] > 0.0 and rc[2] > 0.0 and within(ra, 1.0e7) and within(rb, 1.0e7) \
+        and within(rc, 1.0e7)
     for py in range(y0, y1 + 1):
-        for px in range(x0, x1 + 1):
+        lo = x0
+        hi = x1
+        if spans:
+            xr = row_span(ra, rb, rc, float(py) + 0.5)
+            lo = wp.max(x0, int(wp.ceil(xr[0] - 0.5)))
+            hi = wp.min(x1, int(wp.floor(xr[1] - 0.5)))
+        for px in range(lo, hi + 1):
             if not box_rejects(bins, e, float(px) + 0.5, float(py) + 0.5):
                 o, d = centre_ray(view, py * view.width + px)
-                hit = intersect_triangle(o, d, a, b, c, vi)
+                hit = wp.vec4(0.0)
+                if view.ortho == 0:
+                    hit = hit_through_edges(d, a, b, c, c_ab, c_bc, c_ca)
+                else:
+                    hit = intersect_triangle(o, d, a, b, c, vi)
                 if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
                     if not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3], 0.0, float(px) + 0.5,
                                         float(py) + 0.5):

@@ -69,7 +69,6 @@ class LightLayout:
     offsets: np.ndarray
     faces: list[Face]
     static: bool = True                # nothing moves in the light's view: one map serves the shutter
-    light_still: bool | None = None    # the light holds still over the shutter (found when needed)
     warp: bool | None = None           # auto mode: maps warped (True) or rendered (False), once decided
 
 

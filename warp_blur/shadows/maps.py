@@ -55,6 +55,10 @@ KEY_MAP_COST = 1.75
 #: shutter instants at which a triangle must hold still to render once into a static base map
 #: (the motion planner's probes; a vertex is still when it is identical at all of them)
 STILL_PROBES = (0.0, 0.1234, 0.25, 0.5, 0.618, 0.75, 1.0)
+#: light-local positions this close (relative to the scene's extent) at every probe are still:
+#: a world-still point seen from a moving camera differs by the light table's float32 rounding
+#: (~1e-6), far below a texel (1/size of the extent)
+STILL_TOL = 1e-5
 
 
 class ShadowMaps:
@@ -78,7 +82,7 @@ class ShadowMaps:
         self._static_data: ShadowData | None = None
         self._meshes: dict = {}
         self._binned: ShadowData | None = None
-        self._still: np.ndarray | None = None
+        self._still: dict[int, np.ndarray] = {}
         self._bases: dict[tuple[int, int, int], np.ndarray] = {}
         self.size = options.size
         self.layouts: list[LightLayout] = []
@@ -175,39 +179,45 @@ class ShadowMaps:
         return a, -a @ o
 
     # ------------------------------------------------------------------------------ rendering
-    def _still_triangles(self) -> np.ndarray:
-        """(T,) bool: triangles identical and equally visible at every probe of the shutter."""
-        if self._still is None:
+    def _still_triangles(self, lay: LightLayout) -> np.ndarray:
+        """(T,) bool: triangles that hold still in light lay's frame, identical (to STILL_TOL of the
+        scene's extent: the light table's float32 rounding) and equally visible at every probe. Under a light that holds still
+        in the world these are the world-still triangles whatever the camera does: stillness is
+        judged in the light's frame, where the maps are rigid, not in camera space."""
+        if lay.row not in self._still:
             probes = [self.sample(u) for u in STILL_PROBES]
             ref = probes[0]
-            still_v = np.ones(len(ref.positions), bool)
             still_t = np.ones(len(self.tri_vertices), bool)
+            origin, axes = light_frame(ref.lights[lay.row])
+            local0 = (ref.positions - origin) @ axes.T
+            tol = STILL_TOL * (float(np.abs(local0).max(initial=0.0)) + 1.0)
+            still_v = np.ones(len(local0), bool)
             for p in probes[1:]:
                 if p.positions.shape != ref.positions.shape:
                     still_v[:] = False
                     break
-                still_v &= (p.positions == ref.positions).all(axis=1)
+                origin, axes = light_frame(p.lights[lay.row])
+                still_v &= (np.abs((p.positions - origin) @ axes.T - local0) <= tol).all(axis=1)
                 if len(p.tri_visible) == len(still_t):
                     still_t &= p.tri_visible == ref.tri_visible
-            self._still = still_t & still_v[self.tri_vertices].all(axis=1) if len(self.tri_vertices) else still_t
-            self.counters["shadow_still_triangles"] = int(self._still.sum())
-        return self._still
+            still = still_t & still_v[self.tri_vertices].all(axis=1) if len(self.tri_vertices) else still_t
+            self._still[lay.row] = still
+            self.counters["shadow_still_triangles"] = max(self.counters.get("shadow_still_triangles", 0),
+                                                          int(still.sum()))
+        return self._still[lay.row]
 
     def _direct_depth(self, lay: LightLayout, fi: int, m: int, u: float) -> np.ndarray:
-        """Depth (S, S) of face fi, light sample m, at shutter time u, rendered. Under a light that
-        holds still, the still triangles are rendered once into a base map and each instant renders
-        only the moving ones over it (the nearer depth wins): still occluders cost one map."""
-        s = self.size
+        """Depth (S, S) of face fi, light sample m, at shutter time u, rendered. The triangles
+        that hold still in the light's frame are rendered once into a base map and each instant
+        renders only the others over it (the nearer depth wins): still occluders under a still
+        light cost one map, even seen from a moving camera."""
         face = lay.faces[fi]
         target = self.sample(0.5 if lay.static else u)
         t0 = time.perf_counter()
-        if lay.light_still is None and not lay.static:
-            lay.light_still = all(np.array_equal(self.sample(p).lights[lay.row], target.lights[lay.row])
-                                  for p in STILL_PROBES)
-        if lay.static or not lay.light_still:
+        still = None if lay.static else self._still_triangles(lay)
+        if still is None or not still.any():
             depth = self._render_over(lay, face, m, target, None, None)
         else:
-            still = self._still_triangles()
             key = (lay.row, m, fi)
             if key not in self._bases:
                 self._bases[key] = self._render_over(lay, face, m, target, still, None)
