@@ -1,7 +1,6 @@
 """The hostile-input contract held by a seeded mutation fuzzer (tests/fuzz.py): each mutant of a
 shipped stage renders with finite pixels or exits 2 with one error line and no output."""
 
-import os
 
 import pytest
 from fuzz import judge, mutants, render_args

@@ -25,19 +25,21 @@ so what one key hides the other shows. Depths are compared after warping, never 
 
 from __future__ import annotations
 
+import threading
 import time
 from typing import Callable
 
 import numpy as np
 import warp as wp
 
-from ..raster.binning import TILE_SIZE, TileBins, bin_entries, entry_pixel_bounds
-from ..raster.device_data import TriangleTables, device_array, make_bins, make_geometry, make_view
+from ..raster.binning import bin_entries
+from ..raster.device_data import TriangleTables, device_array
 from ..usd.lights import DISK, RECT, SPHERE
 from ..core.log import warn_once
-from ..core.parallel import launch_pixels, launch_row_bands
+from ..core.parallel import _pool, default_threads, launch_pixels
 from ..kernels.shadow_lookup import FACE_WIDTH
-from ..kernels.shadow_raster import render_shadow_texels, splat_shadow_depth, warp_texels
+from ..kernels.shadow_raster import warp_texels
+from .direct import STILL_PROBES, FaceRasterizer, still_triangles
 from .layout import (FAR, Face, KeyMesh, LightLayout, Sample, ShadowData, ShadowOptions, fit_faces, light_frame,
                      light_sample_offsets, varying_texels)
 
@@ -52,13 +54,6 @@ WARP_TILE = 8
 WARP_SECONDS_PER_TEXEL = 3.5e-7
 #: a key map (depth, triangle and barycentrics gathered per texel) costs this many direct maps
 KEY_MAP_COST = 1.75
-#: shutter instants at which a triangle must hold still to render once into a static base map
-#: (the motion planner's probes; a vertex is still when it is identical at all of them)
-STILL_PROBES = (0.0, 0.1234, 0.25, 0.5, 0.618, 0.75, 1.0)
-#: light-local positions this close (relative to the scene's extent) at every probe are still:
-#: a world-still point seen from a moving camera differs by the light table's float32 rounding
-#: (~1e-6), far below a texel (1/size of the extent)
-STILL_TOL = 1e-5
 
 
 class ShadowMaps:
@@ -83,6 +78,8 @@ class ShadowMaps:
         self._meshes: dict = {}
         self._binned: ShadowData | None = None
         self._still: dict[int, np.ndarray] = {}
+        self._raster = FaceRasterizer(tables, tri_vertices, options.size, device)
+        self._lock = threading.Lock()
         self._bases: dict[tuple[int, int, int], np.ndarray] = {}
         self.size = options.size
         self.layouts: list[LightLayout] = []
@@ -109,17 +106,20 @@ class ShadowMaps:
 
     def sample(self, u: float) -> Sample:
         u = float(u)
-        if u not in self._samples:
-            if len(self._samples) > 16:
-                self._samples.clear()
-            self._samples[u] = self._sample_fn(u)
-        return self._samples[u]
+        with self._lock:
+            if u not in self._samples:
+                if len(self._samples) > 16:
+                    self._samples.clear()
+                self._samples[u] = self._sample_fn(u)
+            return self._samples[u]
 
     def _add_time(self, name: str, dt: float) -> None:
-        self.timings[name] = self.timings.get(name, 0.0) + dt
+        with self._lock:
+            self.timings[name] = self.timings.get(name, 0.0) + dt
 
     def _count(self, name: str, n: int) -> None:
-        self.counters[name] = self.counters.get(name, 0) + n
+        with self._lock:
+            self.counters[name] = self.counters.get(name, 0) + n
 
     def _used_vertices(self, s: Sample) -> np.ndarray:
         tris = self.tri_vertices[s.tri_visible] if len(s.tri_visible) else self.tri_vertices
@@ -180,106 +180,69 @@ class ShadowMaps:
 
     # ------------------------------------------------------------------------------ rendering
     def _still_triangles(self, lay: LightLayout) -> np.ndarray:
-        """(T,) bool: triangles that hold still in light lay's frame, identical (to STILL_TOL of the
-        scene's extent: the light table's float32 rounding) and equally visible at every probe. Under a light that holds still
-        in the world these are the world-still triangles whatever the camera does: stillness is
-        judged in the light's frame, where the maps are rigid, not in camera space."""
+        """(T,) bool: the triangles that hold still in light lay's frame (direct.still_triangles)."""
         if lay.row not in self._still:
-            probes = [self.sample(u) for u in STILL_PROBES]
-            ref = probes[0]
-            still_t = np.ones(len(self.tri_vertices), bool)
-            origin, axes = light_frame(ref.lights[lay.row])
-            local0 = (ref.positions - origin) @ axes.T
-            tol = STILL_TOL * (float(np.abs(local0).max(initial=0.0)) + 1.0)
-            still_v = np.ones(len(local0), bool)
-            for p in probes[1:]:
-                if p.positions.shape != ref.positions.shape:
-                    still_v[:] = False
-                    break
-                origin, axes = light_frame(p.lights[lay.row])
-                still_v &= (np.abs((p.positions - origin) @ axes.T - local0) <= tol).all(axis=1)
-                if len(p.tri_visible) == len(still_t):
-                    still_t &= p.tri_visible == ref.tri_visible
-            still = still_t & still_v[self.tri_vertices].all(axis=1) if len(self.tri_vertices) else still_t
-            self._still[lay.row] = still
+            self._still[lay.row] = still_triangles([self.sample(u) for u in STILL_PROBES], lay.row, self.tri_vertices)
             self.counters["shadow_still_triangles"] = max(self.counters.get("shadow_still_triangles", 0),
-                                                          int(still.sum()))
+                                                          int(self._still[lay.row].sum()))
         return self._still[lay.row]
 
-    def _direct_depth(self, lay: LightLayout, fi: int, m: int, u: float) -> np.ndarray:
+    def _depth_over(self, lay: LightLayout, fi: int, m: int, s: Sample, subset: np.ndarray | None,
+                    base: np.ndarray | None, threads: int | None) -> np.ndarray:
+        a, t = self._face_transform(lay, lay.faces[fi], m, s)
+        return self._raster.depth_over(a, t, lay.faces[fi], s, subset, base, threads)
+
+    def _direct_depth(self, lay: LightLayout, fi: int, m: int, u: float, threads: int | None = None) -> np.ndarray:
         """Depth (S, S) of face fi, light sample m, at shutter time u, rendered. The triangles
         that hold still in the light's frame are rendered once into a base map and each instant
         renders only the others over it (the nearer depth wins): still occluders under a still
         light cost one map, even seen from a moving camera."""
-        face = lay.faces[fi]
+        threads = threads or self.threads
         target = self.sample(0.5 if lay.static else u)
-        t0 = time.perf_counter()
         still = None if lay.static else self._still_triangles(lay)
         if still is None or not still.any():
-            depth = self._render_over(lay, face, m, target, None, None)
+            depth = self._depth_over(lay, fi, m, target, None, None, threads)
         else:
             key = (lay.row, m, fi)
             if key not in self._bases:
-                self._bases[key] = self._render_over(lay, face, m, target, still, None)
+                self._bases[key] = self._depth_over(lay, fi, m, target, still, None, threads)
                 self._count("shadow_maps_still_base", 1)
             depth = self._bases[key]
             if not still.all():
-                depth = self._render_over(lay, face, m, target, ~still, depth)
-        self._add_time("shadow_render", time.perf_counter() - t0)
+                depth = self._depth_over(lay, fi, m, target, ~still, depth, threads)
         self._count("shadow_maps_rendered", 1)
         return depth
 
-    def _render_over(self, lay: LightLayout, face: Face, m: int, s: Sample, subset: np.ndarray | None,
-                     base: np.ndarray | None) -> np.ndarray:
-        """Depth (S, S) of the visible triangles (of `subset`, a (T,) mask, when given) rendered
-        over `base` (the nearer wins; None: an empty map), each triangle splatted over its own box
-        (atomic min: order-free). Depth-only maps are splatted rather than gathered per texel: a
-        texel then tests the triangles that cover it, not its tile's whole list (1.75x faster on
-        demo's maps, the same depths)."""
-        view, geo, b, kept = self._face_scene(lay, face, m, s, subset, tiles=False)
-        entries = device_array(kept.astype(np.int32), int, self.device)
-        if base is None:
-            depth = wp.full(self.size * self.size, wp.inf, dtype=float, device=self.device)
-        else:
-            depth = wp.array(base.ravel(), dtype=float, device=self.device)
-        launch_row_bands(splat_shadow_depth, len(kept), self.size,
-                         lambda y0, y1: [view, geo, b, entries, y0, y1, depth], self.device, self.threads)
-        return depth.numpy().reshape(self.size, self.size)
+    def _render_direct(self, lay: LightLayout, jobs: list[tuple[int, int, int, float]], maps: np.ndarray) -> None:
+        """Render light lay's direct maps `jobs` ((slot, face, light sample, time)) into maps, one
+        map per pool thread as a single-core launch: a map's host-side setup overlaps the other
+        threads' rasterizing. Still bases (distinct per face and sample) are rendered first."""
+        if not jobs:
+            return
+        t0 = time.perf_counter()
+        threads = self.threads or default_threads()
+        run = (lambda f, xs: [f(x) for x in xs]) if threads == 1 or len(jobs) == 1 else _pool(threads).map
+        single = 1 if threads > 1 and len(jobs) > 1 else None
+        for u in {u for *_rest, u in jobs}:
+            self.sample(u)   # sampled once, here, not from the pool's threads
+        still = None if lay.static else self._still_triangles(lay)
+        if still is not None and still.any():
+            first: dict[tuple[int, int], float] = {}
+            for _slot, fi, m, u in jobs:
+                first.setdefault((m, fi), u)
+            todo = [(fi, m, u) for (m, fi), u in first.items() if (lay.row, m, fi) not in self._bases]
 
-    def _face_scene(self, lay: LightLayout, face: Face, m: int, s: Sample, subset: np.ndarray | None,
-                    tiles: bool = True):
-        """(view, geometry, device bins, kept entries (K,)) of one face seen from light sample m at
-        sample s, with the visible triangles (of `subset`, a (T,) mask, when given). With tiles
-        False the bins carry only the entries' boxes (enough for splatting)."""
-        a, t = self._face_transform(lay, face, m, s)
-        q = s.positions @ a.T + t
-        proj = face.projection(self.size)
-        visible = s.tri_visible if len(s.tri_visible) else np.zeros(len(self.tri_vertices), bool)
-        if subset is not None:
-            visible = visible & subset
-        tris = np.nonzero(visible)[0].astype(np.int32)
-        k = np.zeros(len(tris), np.int32)
-        boxes, keep = entry_pixel_bounds(proj, q[None], self.tri_vertices, tris, k, k, 1.0)
-        if tiles:
-            bins = bin_entries(proj, boxes, keep, TILE_SIZE)
-        else:
-            bins = TileBins(np.zeros(1, np.int32), np.zeros(0, np.int32), 0, 0, np.asarray(boxes, np.float32))
-        geo = make_geometry(self.tables, q[None], None, tris, k, k)
-        view = make_view(proj, 1, bins if tiles else None, TILE_SIZE)
-        view.near = face.near
-        return view, geo, make_bins(bins, self.device), np.nonzero(keep)[0]
+            def base(job: tuple[int, int, float]) -> None:
+                fi, m, u = job
+                self._bases[(lay.row, m, fi)] = self._depth_over(lay, fi, m, self.sample(u), still, None, single)
+            list(run(base, todo))
+            self._count("shadow_maps_still_base", len(todo))
 
-    def _render_face(self, lay: LightLayout, face: Face, m: int, s: Sample, subset: np.ndarray | None = None):
-        """Depth (S*S,), triangle (S*S,) and barycentrics (S*S, 2) of one face, rendered from the
-        visible triangles (of `subset`, a (T,) mask, when given)."""
-        view, geo, b, _kept = self._face_scene(lay, face, m, s, subset)
-        n = self.size * self.size
-        depth = wp.empty(n, dtype=float, device=self.device)
-        tri = wp.empty(n, dtype=int, device=self.device)
-        bary = wp.empty(n, dtype=wp.vec2, device=self.device)
-        launch_pixels(render_shadow_texels, n, lambda first, _n: [view, geo, b, first, depth, tri, bary],
-                      self.device, self.threads)
-        return depth, tri, bary
+        def one(job: tuple[int, int, int, float]) -> None:
+            slot, fi, m, u = job
+            maps[slot] = self._direct_depth(lay, fi, m, u, single)
+        list(run(one, jobs))
+        self._add_time("shadow_render", time.perf_counter() - t0)
 
     def _key_times(self, lay: LightLayout) -> list[float]:
         """Key instants: open and close, bisected while the light-space motion between keys is
@@ -314,7 +277,8 @@ class ShadowMaps:
             s = self.sample(key_time)
             out = []
             for face in lay.faces:
-                d, tr, ba = self._render_face(lay, face, self._centre(lay), s)
+                a, t = self._face_transform(lay, face, self._centre(lay), s)
+                d, tr, ba = self._raster.gather(a, t, face, s, self.threads)
                 out.append((d.numpy().reshape(self.size, self.size), tr.numpy().reshape(self.size, self.size),
                             ba.numpy().reshape(self.size, self.size, 2)))
             self._keys[ident] = out
@@ -509,17 +473,21 @@ class ShadowMaps:
             rendered = 0
             if keys is not None:
                 self.counters["shadow_keys"] = max(self.counters.get("shadow_keys", 0), len(keys))
+            jobs: list[tuple[int, int, int, float]] = []   # direct maps, rendered in parallel below
             for m in range(len(lay.offsets)):
                 for u in times:
                     for fi, face in enumerate(lay.faces):
-                        if keys is None:
+                        if keys is None and lay.warp is not None:
+                            jobs.append((idx, fi, m, u))
+                        elif keys is None:
                             t0 = time.perf_counter()
                             bases = self.counters.get("shadow_maps_still_base", 0)
                             maps[idx] = self._direct_depth(lay, fi, m, u)
+                            self._add_time("shadow_render", time.perf_counter() - t0)
                             rendered += 1
                             # auto: the light's first map decides (the first over a still base
                             # rendered beforehand: the base is paid once, whatever the mode)
-                            if lay.warp is None and bases == self.counters.get("shadow_maps_still_base", 0):
+                            if bases == self.counters.get("shadow_maps_still_base", 0):
                                 n = frame_instants * len(lay.offsets) * len(lay.faces) - rendered
                                 lay.warp = self._warp_pays(lay, time.perf_counter() - t0, n)
                                 self.counters.setdefault("shadow_warped_lights", []).append(int(lay.warp))
@@ -534,6 +502,7 @@ class ShadowMaps:
                         faces[idx, 16] = 1.0 if face.ortho else 0.0
                         faces[idx, 17] = face.near if not face.ortho else -FAR
                         idx += 1
+            self._render_direct(lay, jobs, maps)
         varying = None
         if len(times) > 1:
             varying = varying_texels(maps, info, len(times))

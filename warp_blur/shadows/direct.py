@@ -1,0 +1,104 @@
+"""Direct shadow maps: one face of a light rendered from the scene's triangles by the sharp
+rasterizer's hit test (depth splatted per triangle, or depth, triangle and barycentrics gathered
+per texel for warping keys), and the triangles that hold still in a light's frame (rendered once
+into a base map that every instant's moving triangles are rendered over).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ..core.parallel import launch_pixels, launch_row_bands
+from ..kernels.shadow_raster import render_shadow_texels, splat_shadow_depth
+from ..raster.binning import TILE_SIZE, TileBins, bin_entries, entry_pixel_bounds
+from ..raster.device_data import TriangleTables, device_array, make_bins, make_geometry, make_view
+from .layout import Face, Sample, light_frame
+
+#: shutter instants at which a triangle must hold still to render once into a static base map
+#: (the motion planner's probes; a vertex is still when it is the same at all of them)
+STILL_PROBES = (0.0, 0.1234, 0.25, 0.5, 0.618, 0.75, 1.0)
+#: light-local positions this close (relative to the scene's extent) at every probe are still:
+#: a world-still point seen from a moving camera differs by the light table's float32 rounding
+#: (~1e-6), far below a texel (1/size of the extent)
+STILL_TOL = 1e-5
+
+
+def still_triangles(probes: list[Sample], row: int, tri_vertices: np.ndarray) -> np.ndarray:
+    """(T,) bool: triangles that hold still in light `row`'s frame, the same (to STILL_TOL of the
+    scene's extent) and equally visible at every probe. Under a light that holds still in the
+    world these are the world-still triangles whatever the camera does: stillness is judged in
+    the light's frame, where the maps are rigid, not in camera space."""
+    ref = probes[0]
+    still_t = np.ones(len(tri_vertices), bool)
+    origin, axes = light_frame(ref.lights[row])
+    local0 = (ref.positions - origin) @ axes.T
+    tol = STILL_TOL * (float(np.abs(local0).max(initial=0.0)) + 1.0)
+    still_v = np.ones(len(local0), bool)
+    for p in probes[1:]:
+        if p.positions.shape != ref.positions.shape:
+            still_v[:] = False
+            break
+        origin, axes = light_frame(p.lights[row])
+        still_v &= (np.abs((p.positions - origin) @ axes.T - local0) <= tol).all(axis=1)
+        if len(p.tri_visible) == len(still_t):
+            still_t &= p.tri_visible == ref.tri_visible
+    return still_t & still_v[tri_vertices].all(axis=1) if len(tri_vertices) else still_t
+
+
+class FaceRasterizer:
+    """Renders S×S faces of the frame's triangles (tables and (T, 3) vertex indices) given a
+    face transform (A (3, 3), t (3,): face-space q = A p + t of camera-space p)."""
+
+    def __init__(self, tables: TriangleTables, tri_vertices: np.ndarray, size: int, device: str) -> None:
+        self.tables, self.tri_vertices, self.size, self.device = tables, tri_vertices, size, device
+
+    def scene(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, subset: np.ndarray | None,
+              tiles: bool = True):
+        """(view, geometry, device bins, kept entries (K,)) of the face at sample s, with the
+        visible triangles (of `subset`, a (T,) mask, when given). With tiles False the bins carry
+        only the entries' boxes (enough for splatting)."""
+        q = s.positions @ a.T + t
+        proj = face.projection(self.size)
+        visible = s.tri_visible if len(s.tri_visible) else np.zeros(len(self.tri_vertices), bool)
+        if subset is not None:
+            visible = visible & subset
+        tris = np.nonzero(visible)[0].astype(np.int32)
+        k = np.zeros(len(tris), np.int32)
+        boxes, keep = entry_pixel_bounds(proj, q[None], self.tri_vertices, tris, k, k, 1.0)
+        if tiles:
+            bins = bin_entries(proj, boxes, keep, TILE_SIZE)
+        else:
+            bins = TileBins(np.zeros(1, np.int32), np.zeros(0, np.int32), 0, 0, np.asarray(boxes, np.float32))
+        geo = make_geometry(self.tables, q[None], None, tris, k, k)
+        view = make_view(proj, 1, bins if tiles else None, TILE_SIZE)
+        view.near = face.near
+        return view, geo, make_bins(bins, self.device), np.nonzero(keep)[0]
+
+    def depth_over(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, subset: np.ndarray | None,
+                   base: np.ndarray | None, threads: int | None) -> np.ndarray:
+        """Depth (S, S) of the visible triangles (of `subset`) rendered over `base` (the nearer
+        wins; None: an empty map), each triangle splatted over its rows' spans (atomic min:
+        order-free). Depth-only maps are splatted rather than gathered per texel: a texel then
+        tests the triangles that cover it, not its tile's whole list."""
+        view, geo, b, kept = self.scene(a, t, face, s, subset, tiles=False)
+        entries = device_array(kept.astype(np.int32), int, self.device)
+        if base is None:
+            depth = wp.full(self.size * self.size, wp.inf, dtype=float, device=self.device)
+        else:
+            depth = wp.array(base.ravel(), dtype=float, device=self.device)
+        launch_row_bands(splat_shadow_depth, len(kept), self.size,
+                         lambda y0, y1: [view, geo, b, entries, y0, y1, depth], self.device, threads)
+        return depth.numpy().reshape(self.size, self.size)
+
+    def gather(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, threads: int | None):
+        """Depth (S*S,), triangle (S*S,) and barycentrics (S*S, 2) warp arrays of the face (a warp
+        key: each texel knows the surface point it sees)."""
+        view, geo, b, _kept = self.scene(a, t, face, s, None)
+        n = self.size * self.size
+        depth = wp.empty(n, dtype=float, device=self.device)
+        tri = wp.empty(n, dtype=int, device=self.device)
+        bary = wp.empty(n, dtype=wp.vec2, device=self.device)
+        launch_pixels(render_shadow_texels, n, lambda first, _n: [view, geo, b, first, depth, tri, bary],
+                      self.device, threads)
+        return depth, tri, bary
