@@ -169,7 +169,7 @@ def analytic_culling_on() -> bool:
 @pytest.fixture(scope="module")
 def thousand_layers(tmp_path_factory):
     """(path, accumulation-256 reference) of 1000 moving layers at 8x6, rendered once for the
-    three methods (the reference alone takes ~10 s)."""
+    three methods (the reference alone takes ~30 s)."""
     path = moving_layers_stage(str(tmp_path_factory.mktemp("layers") / "layers.usda"), 1000, size=2.5)
     return path, wb.render(path, frame=1, resolution=(8, 6), samples=256, aovs=())
 

@@ -78,14 +78,22 @@ def test_gprims_purpose_and_visibility(scene_path):
     hidden = UsdGeom.Cube.Define(stage, "/World/Blink")
     hidden.CreateVisibilityAttr().Set(UsdGeom.Tokens.invisible, 1.25)
     hidden.GetVisibilityAttr().Set(UsdGeom.Tokens.inherited, 0.0)
+    group = UsdGeom.Xform.Define(stage, "/World/Group")   # animated on a parent: the child blinks too
+    group.CreateVisibilityAttr().Set(UsdGeom.Tokens.inherited, 0.0)
+    group.GetVisibilityAttr().Set(UsdGeom.Tokens.invisible, 1.25)
+    UsdGeom.Cube.Define(stage, "/World/Group/Child")
     UsdGeom.BasisCurves.Define(stage, "/World/Curves")
     stage.GetRootLayer().Save()
     stage, cam, scene = _scene(path)
     paths = [u.path for u in scene.units]
-    assert paths == ["/World/S", "/World/C", "/World/K", "/World/P", "/World/L", "/World/Blink"]
-    blink = scene.tri_unit == paths.index("/World/Blink")
-    assert scene.snapshot(1.0).tri_visible[blink].all()
-    assert not scene.snapshot(1.3).tri_visible[blink].any()
+    assert paths == ["/World/S", "/World/C", "/World/K", "/World/P", "/World/L", "/World/Blink",
+                     "/World/Group/Child"]
+    for name in ("/World/Blink", "/World/Group/Child"):
+        blink = scene.tri_unit == paths.index(name)
+        assert scene.snapshot(1.0).tri_visible[blink].all() and scene.snapshot(0.9).tri_visible[blink].all()
+        assert not scene.snapshot(1.3).tri_visible[blink].any()
+    still = scene.tri_unit == paths.index("/World/S")   # never animated: its visibility is read once
+    assert scene.snapshot(1.3).tri_visible[still].all() and scene.units[0].visibility == (False, True)
     # the sphere's tessellation lies on the radius-1 sphere
     s = scene.snapshot(1.0).positions[: scene.units[0].num_points] - np.array([0, 0, -10.0])
     np.testing.assert_allclose(np.linalg.norm(s, axis=1), 1.0, atol=1e-6)

@@ -1,9 +1,8 @@
 """USD -> NumPy: static topology read once per frame, camera-space snapshots at any shutter time.
 
-Only this module, `stage.py`, `materials.py`, `lights.py` and `tessellate.py` import pxr.
-Positions are composed in float64 on the host and made camera-relative (cam_from_local =
-local_to_world @ world_to_cam, both float64) before kernels see them as float32, so scenes far
-from the origin keep their precision.
+Only this module, `stage.py`, `materials.py`, `lights.py` and `tessellate.py` import pxr. Positions are
+composed in float64 and made camera-relative (cam_from_local = local_to_world @ world_to_cam) before
+kernels see them as float32, so scenes far from the origin keep their precision.
 """
 
 from __future__ import annotations
@@ -24,7 +23,7 @@ from .points import derived_points_fn, points_unit_fields
 from .normals import authored_normals_fn, split_normals_fn, transform_normals, vertex_normals, vertex_normals_since
 from .subdivision import mesh_refinement, refined_surface_primvars, refined_triangles, screen_level, stage_level
 from .skinning import Skins, skinned_points_fn
-from .stage import Shutter
+from .stage import Shutter, prims_visible, visibility_varies
 from .primvars import corner_primvar
 from .tessellate import is_closed_surface, tessellate_gprim, triangulate_corners
 
@@ -57,10 +56,12 @@ class GeomUnit:
     normals_at: Callable[[float], np.ndarray] | None = None   # time -> (N, 3) authored local normals (normals.py)
     corner_opacity: np.ndarray | None = None  # (T, 3) float32 opacity primvar (displayOpacity) at each corner
 
+    visibility: tuple | None = None   # (may vary over time, the value when it does not): found on first use
+
     def visible_at(self, time: float) -> bool:
-        t = Usd.TimeCode(time)
-        return all(UsdGeom.Imageable(p).ComputeVisibility(t) != UsdGeom.Tokens.invisible
-                   for p in self.visibility_prims)
+        if self.visibility is None:   # once per prim: most never animate their visibility
+            self.visibility = (visibility_varies(self.visibility_prims), prims_visible(self.visibility_prims, time))
+        return prims_visible(self.visibility_prims, time) if self.visibility[0] else self.visibility[1]
 
 
 def prototype_unit_name(instancer: str, proto_path: Sdf.Path, sub_path: Sdf.Path) -> str:
@@ -339,8 +340,7 @@ class Scene:
             return
         pts, tris, smooth, face_of_tri, corners = out
         material, flags, blur = self._common(prim, t)
-        if smooth:
-            flags |= FLAG_SMOOTH
+        flags |= FLAG_SMOOTH if smooth else 0
         colors, uvs, opacity = self._surface_primvars(prim, t, material, tris, face_of_tri, corners)
         self.units.append(GeomUnit(
             path=str(prim.GetPath()), prim=prim, local_tris=tris, num_points=len(pts),

@@ -290,3 +290,23 @@ def output_path_for_frame(pattern: str, frame: float, num_frames: int) -> str:
             raise UserError(f"frame {frame} is a sub-frame: the output needs a '###.###' pattern")
         text = f"{int(frame):0{int_width}d}"
     return pattern[:m.start()] + text + pattern[m.end():]
+
+
+def visibility_varies(prims: list[Usd.Prim]) -> bool:
+    """True when the visibility of any of `prims` or of an ancestor may change over time (an
+    animated `visibility` attribute); else every time's ComputeVisibility gives the same answer."""
+    seen = set()
+    for prim in prims:
+        p = prim
+        while p and p.IsValid() and not p.IsPseudoRoot() and p.GetPath() not in seen:
+            seen.add(p.GetPath())
+            if p.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(p).GetVisibilityAttr().ValueMightBeTimeVarying():
+                return True
+            p = p.GetParent()
+    return False
+
+
+def prims_visible(prims: list[Usd.Prim], time: float) -> bool:
+    """True when none of `prims` is invisible at USD time `time` (ancestors included)."""
+    t = Usd.TimeCode(time)
+    return all(UsdGeom.Imageable(p).ComputeVisibility(t) != UsdGeom.Tokens.invisible for p in prims)
