@@ -36,6 +36,15 @@ def _run_bands(kernel, device: str, threads: int, starts: range, run: Callable[[
     list(_pool(threads).map(run_and_report, starts))
 
 
+def map_threads(fn: Callable, items: list, threads: int | None = None) -> list:
+    """[fn(x) for x in items], run on the shared thread pool (serially with one thread or one
+    item): for jobs that each launch single-core kernels and do host work between them."""
+    threads = threads or default_threads()
+    if threads == 1 or len(items) <= 1:
+        return [fn(x) for x in items]
+    return list(_pool(threads).map(fn, items))
+
+
 def _band_size(total: int, threads: int, bands_per_thread: int) -> int:
     num_bands = min(total, threads * bands_per_thread)
     return (total + num_bands - 1) // num_bands

@@ -36,7 +36,7 @@ from ..raster.binning import bin_entries
 from ..raster.device_data import TriangleTables, device_array
 from ..usd.lights import DISK, RECT, SPHERE
 from ..core.log import warn_once
-from ..core.parallel import _pool, default_threads, launch_pixels
+from ..core.parallel import default_threads, launch_pixels, map_threads
 from ..kernels.shadow_lookup import FACE_WIDTH
 from ..kernels.shadow_raster import warp_texels
 from .direct import STILL_PROBES, FaceRasterizer, still_triangles
@@ -192,6 +192,15 @@ class ShadowMaps:
         a, t = self._face_transform(lay, lay.faces[fi], m, s)
         return self._raster.depth_over(a, t, lay.faces[fi], s, subset, base, threads)
 
+    def _base(self, lay: LightLayout, fi: int, m: int, target: Sample, still: np.ndarray,
+              threads: int | None) -> np.ndarray:
+        """The still triangles' base map of face fi, light sample m (rendered at target once)."""
+        key = (lay.row, m, fi)
+        if key not in self._bases:
+            self._bases[key] = self._depth_over(lay, fi, m, target, still, None, threads)
+            self._count("shadow_maps_still_base", 1)
+        return self._bases[key]
+
     def _direct_depth(self, lay: LightLayout, fi: int, m: int, u: float, threads: int | None = None) -> np.ndarray:
         """Depth (S, S) of face fi, light sample m, at shutter time u, rendered. The triangles
         that hold still in the light's frame are rendered once into a base map and each instant
@@ -203,11 +212,7 @@ class ShadowMaps:
         if still is None or not still.any():
             depth = self._depth_over(lay, fi, m, target, None, None, threads)
         else:
-            key = (lay.row, m, fi)
-            if key not in self._bases:
-                self._bases[key] = self._depth_over(lay, fi, m, target, still, None, threads)
-                self._count("shadow_maps_still_base", 1)
-            depth = self._bases[key]
+            depth = self._base(lay, fi, m, target, still, threads)
             if not still.all():
                 depth = self._depth_over(lay, fi, m, target, ~still, depth, threads)
         self._count("shadow_maps_rendered", 1)
@@ -216,32 +221,25 @@ class ShadowMaps:
     def _render_direct(self, lay: LightLayout, jobs: list[tuple[int, int, int, float]], maps: np.ndarray) -> None:
         """Render light lay's direct maps `jobs` ((slot, face, light sample, time)) into maps, one
         map per pool thread as a single-core launch: a map's host-side setup overlaps the other
-        threads' rasterizing. Still bases (distinct per face and sample) are rendered first."""
+        threads' rasterizing. Still bases (one per face and sample) are rendered first, so no
+        two threads render the same one."""
         if not jobs:
             return
         t0 = time.perf_counter()
         threads = self.threads or default_threads()
-        run = (lambda f, xs: [f(x) for x in xs]) if threads == 1 or len(jobs) == 1 else _pool(threads).map
         single = 1 if threads > 1 and len(jobs) > 1 else None
-        for u in {u for *_rest, u in jobs}:
-            self.sample(u)   # sampled once, here, not from the pool's threads
         still = None if lay.static else self._still_triangles(lay)
         if still is not None and still.any():
             first: dict[tuple[int, int], float] = {}
             for _slot, fi, m, u in jobs:
-                first.setdefault((m, fi), u)
-            todo = [(fi, m, u) for (m, fi), u in first.items() if (lay.row, m, fi) not in self._bases]
-
-            def base(job: tuple[int, int, float]) -> None:
-                fi, m, u = job
-                self._bases[(lay.row, m, fi)] = self._depth_over(lay, fi, m, self.sample(u), still, None, single)
-            list(run(base, todo))
-            self._count("shadow_maps_still_base", len(todo))
+                first.setdefault((fi, m), u)
+            map_threads(lambda job: self._base(lay, job[0][0], job[0][1], self.sample(job[1]), still, single),
+                        list(first.items()), threads)
 
         def one(job: tuple[int, int, int, float]) -> None:
             slot, fi, m, u = job
             maps[slot] = self._direct_depth(lay, fi, m, u, single)
-        list(run(one, jobs))
+        map_threads(one, jobs, threads)
         self._add_time("shadow_render", time.perf_counter() - t0)
 
     def _key_times(self, lay: LightLayout) -> list[float]:
