@@ -106,18 +106,20 @@ def edge_degenerate(coef: Any, d: Any, a0: Any, da: Any, b0: Any, db: Any, tol: 
 
 
 @wp.func
-def edge_sides(coef: Any, degenerate: int, s: Any, c: Any):
-    """(positive side ok, negative side ok) of an edge at time s, as 1/0.
+def edge_sides(coef: Any, degenerate: int, s: Any, p: Any, q: Any, ip: int, iq: int):
+    """(positive side ok, negative side ok) of the edge from vertex ip (eye-relative position p at
+    time s) to iq (q) at time s, as 1/0.
 
     A degenerate edge (see edge_degenerate) or an exact zero is a tie, settled by the same
-    ownership rule as the sharp test on the edge's canonical cross vector c (`edge_cross`), so
-    two triangles sharing the edge cover the pixel once."""
+    ownership rule as the sharp test on the edge's canonical cross vector (`edge_cross`, computed
+    only then), so two triangles sharing the edge cover the pixel once."""
     zero = type(s)(0.0)
     one = type(s)(1.0)
     val = eval_quad(coef, s)
     pos = zero
     neg = zero
     if degenerate != 0 or val == zero:
+        c = edge_cross(p, q, ip, iq)
         if edge_owns(c):
             pos = one
         if edge_owns(-c):
@@ -165,9 +167,9 @@ def piece_covered(ca: Any, cb: Any, cc: Any, dga: int, dgb: int, dgc: int, a0: A
     pa = a0 + sm * da
     pb = b0 + sm * db
     pc = c0 + sm * dc
-    e1 = edge_sides(ca, dga, sm, edge_cross(pa, pb, vi[0], vi[1]))
-    e2 = edge_sides(cb, dgb, sm, edge_cross(pb, pc, vi[1], vi[2]))
-    e3 = edge_sides(cc, dgc, sm, edge_cross(pc, pa, vi[2], vi[0]))
+    e1 = edge_sides(ca, dga, sm, pa, pb, vi[0], vi[1])
+    e2 = edge_sides(cb, dgb, sm, pb, pc, vi[1], vi[2])
+    e3 = edge_sides(cc, dgc, sm, pc, pa, vi[2], vi[0])
     one = type(sm)(1.0)
     zero = type(sm)(0.0)
     if conservative != 0:

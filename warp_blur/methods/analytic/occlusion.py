@@ -3,10 +3,13 @@
 A sample keeps, for G culling slots of the shutter, the nearest depth by which a stored interval
 already covers the slot (`occ[row, j]`, inf while uncovered; `occ[row, G]` is the farthest of
 them, so a sample whose every slot is covered can stop early; G = 0 switches culling off):
-- bitmask resolve (B time bits): G = B and slot j is the resolve's own instant (j + 0.5)/B, the
-  depth there taken from the interval's depth line, exactly as the resolve reads it;
-- exact resolve: G = EXACT_CULL_SLOTS and slot j is the span [j/G, (j+1)/G], recorded only by an
-  interval covering all of it (its farthest depth in the slot).
+- span slots (the default, any resolve: G = CULL_SLOTS in the package): slot j is the span
+  [j/G, (j+1)/G], recorded only by an interval covering all of it (its farthest depth in the
+  slot), so whatever lies behind it in the slot is hidden at every instant and every span there;
+- instant slots (bitmask resolve of B <= MAX_INSTANT_CULL_SLOTS bits, when asked for): G = B and slot
+  j is the resolve's own instant (j + 0.5)/B, the depth there taken from the interval's depth
+  line, exactly as the resolve reads it (culls more, costs more: a stored interval updates every
+  slot instant it holds).
 An interval is dropped, and an entry skipped before its coverage is computed, when at each slot
 it touches it lies behind the slot's depth by more than CULL_MARGIN (relative): some stored
 interval is then in front of it wherever the resolve looks, so the resolve's result is the same
@@ -21,7 +24,7 @@ import warp as wp
 
 from .resolve import span_slots, z_at
 
-EXACT_CULL_SLOTS = 128
+MAX_INSTANT_CULL_SLOTS = 128   # instant slots are used up to this many time bits
 CULL_MARGIN = 1.0e-5
 # samples per fill launch band, so that each band's culling rows stay within ~64 MB
 CULL_ROW_BYTES_BUDGET = 64 * 2**20
