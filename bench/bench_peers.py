@@ -7,19 +7,19 @@ in one run, against the same accumulation reference.
 bpy is ~1 GB and needs Python 3.11: install it in a separate venv and pass its python (or set
 WARP_BLUR_BPY_PYTHON); without it the bench says so and exits 0. Never run in CI.
 
-So that the error measures blur and not shading models, every renderer renders an *emissive
-variant* of each scene (bench/out/peers/<scene>_emissive.usda, flattened): each UsdPreviewSurface
-emits emissiveColor + diffuseColor with black diffuse and specular, and the distant/sphere/rect/
-disk lights are removed (the dome stays as the background). Conversions for Cycles
+So that the error measures blur and not shading models, every renderer renders an *emissive variant*
+of each scene (bench/out/peers/<scene>_emissive.usda, flattened): each UsdPreviewSurface emits
+emissiveColor + diffuseColor with black diffuse and specular, and the distant/sphere/rect/disk
+lights are removed (the dome stays as the background). Conversions for Cycles
 (bench/cycles_worker.py): Blender's USD importer (camera and meshes); each material an Emission
-shader of the importer's emission colour; the dome's radiance as a constant world; shutter
-length 1 frame centred on the frame (the stages' (-0.5, 0.5)); box pixel filter 0.01 px (the
-pixel centre, as SPEC §1); no denoising, no adaptive sampling, no bounces; transparent film, the
-dome colour added back as rgb + (1 - alpha) × dome. Times: warp_blur's Renderer.render (loading
-the frame included); Cycles' bpy.ops.render.render (scene sync and BVH included; Blender start-up
-and the USD import excluded). A scene where Cycles at its most samples stays above
-MISMATCH_RMSE from the reference is reported as a conversion mismatch (e.g. motion the importer
-does not carry) and left out of the targets.
+shader of the importer's emission colour; the dome's radiance as a constant world; shutter length 1
+frame centred on the frame (the stages' (-0.5, 0.5)); Gaussian pixel filter 0.01 px (the pixel
+centre, as SPEC §1; Blender syncs a box filter at 1 px whatever its width); no denoising, no
+adaptive sampling, no bounces; transparent film, the dome colour added back as rgb + (1 - alpha) ×
+dome. Times: warp_blur's Renderer.render (loading the frame included); Cycles' bpy.ops.render.render
+(scene sync and BVH included; Blender start-up and the USD import excluded). A scene where Cycles at
+its most samples stays above MISMATCH_RMSE from the reference is reported as a conversion mismatch
+(e.g. motion the importer does not carry) and left out of the targets.
 """
 
 from __future__ import annotations
@@ -173,7 +173,10 @@ def main() -> None:
                 ratio = entry[f"t_{m}"] / t_a if t_a < math.inf else math.nan
                 entry[f"x_{m}"] = ratio
                 need = SPEEDUP_TARGETS[m] if target <= 2e-3 else 1.0
-                verdicts.append(f"{m} {'met' if ratio >= need else 'MISSED'} (need {need:g}x)")
+                if entry[f"t_{m}"] == math.inf:
+                    verdicts.append(f"{m} never reached it (no ratio)")
+                else:
+                    verdicts.append(f"{m} {'met' if ratio >= need else 'MISSED'} (need {need:g}x)")
             entry["targets"] = "; ".join(verdicts)
             summary.append(entry)
     bar.close()

@@ -1,12 +1,13 @@
 """Render one USD stage through Blender Cycles (CPU) with motion blur, for bench/bench_peers.py.
 
-Runs in a Python that has `bpy` (pip install 'bpy==4.5.*', e.g. in a separate venv); prints one
-JSON line per render: {"spp", "seconds", "exr"}. The conversions (stated in bench_peers.py):
-USD importer (cameras and meshes, lights not imported), every material replaced by an Emission
-shader of the colour the importer put in its Principled BSDF's emission, the dome's colour as a
-constant world, shutter mapped to Cycles' (length in frames, centred on the frame), a 0.01-px box
-pixel filter (the pixel centre), no denoising, no adaptive sampling, no bounces, transparent film
-(the background is added back by the caller).
+Runs in a Python that has `bpy` (pip install 'bpy==4.5.*', e.g. in a separate venv); prints one JSON
+line per render: {"spp", "seconds", "exr"}. The conversions (stated in bench_peers.py): USD importer
+(cameras and meshes, lights not imported), every material replaced by an Emission shader of the
+colour the importer put in its Principled BSDF's emission, the dome's colour as a constant world,
+shutter mapped to Cycles' (length in frames, centred on the frame), a 0.01-px Gaussian pixel filter
+(the pixel centre: Blender's sync forces a box filter's width to 1 px, so a "0.01-px box" is really
+a 1-px box and antialiases every edge), no denoising, no adaptive sampling, no bounces, transparent
+film (the background is added back by the caller).
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ def setup(scene_path: str, frame: int, res: tuple[int, int], dome: tuple[float, 
     scene.cycles.use_adaptive_sampling = False
     scene.cycles.use_denoising = False
     scene.cycles.max_bounces = 0
-    scene.cycles.pixel_filter_type = "BOX"
+    scene.cycles.pixel_filter_type = "GAUSSIAN"  # not BOX: Blender syncs a box filter at width 1 px
     scene.cycles.filter_width = 0.01
     scene.render.film_transparent = True
     scene.render.resolution_x, scene.render.resolution_y = res
