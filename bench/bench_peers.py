@@ -8,9 +8,9 @@ bpy is ~1 GB and needs Python 3.11: install it in a separate venv and pass its p
 WARP_BLUR_BPY_PYTHON); without it the bench says so and exits 0. Never run in CI.
 
 So that the error measures blur and not shading models, every renderer renders an *emissive variant*
-of each scene (bench/out/peers/<scene>_emissive.usda, flattened): each UsdPreviewSurface emits
-emissiveColor + diffuseColor with black diffuse and specular, and the distant/sphere/rect/disk
-lights are removed (the dome stays as the background). Conversions for Cycles
+of each scene (bench/out/peers/<scene>_emissive.usda, flattened; bench/peer_variants.py lists what
+it changes: emissive materials, no lights but the dome, Cubes as meshes, control cages, instancer
+velocities baked into shutter-open/close samples). Conversions for Cycles
 (bench/cycles_worker.py): Blender's USD importer (camera and meshes); each material an Emission
 shader of the importer's emission colour; the dome's radiance as a constant world; shutter length 1
 frame centred on the frame (the stages' (-0.5, 0.5)); Gaussian pixel filter 0.01 px (the pixel
@@ -36,6 +36,7 @@ from tqdm import tqdm
 sys.path.insert(0, os.path.dirname(__file__))
 from bench_tradeoff import TARGETS, time_to_error  # noqa: E402
 from common import OUT, ROOT, SCENES, pyplot, table, timed_median  # noqa: E402
+from peer_variants import emissive_variant  # noqa: E402
 from references import reference  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -56,36 +57,6 @@ def bpy_python(explicit: str | None) -> str | None:
         if cand and subprocess.run([cand, "-c", "import bpy"], capture_output=True).returncode == 0:
             return cand
     return None
-
-
-def emissive_variant(src: str, dst: str) -> tuple[float, float, float]:
-    """Write the emissive variant of stage src to dst; returns the dome's radiance (black if none)."""
-    from pxr import Gf, Sdf, Usd, UsdLux, UsdShade
-    out = Usd.Stage.Open(Usd.Stage.Open(src).Flatten())
-    dome = (0.0, 0.0, 0.0)
-    for prim in list(out.Traverse()):
-        if prim.IsA(UsdLux.DomeLight):
-            light = UsdLux.DomeLight(prim)
-            c = light.GetColorAttr().Get()
-            k = light.GetIntensityAttr().Get() * 2.0 ** light.GetExposureAttr().Get()
-            dome = tuple(float(v) * k for v in c)
-        elif prim.HasAPI(UsdLux.LightAPI):
-            out.RemovePrim(prim.GetPath())
-            continue
-        shader = UsdShade.Shader(prim)
-        if shader and shader.GetIdAttr().Get() == "UsdPreviewSurface":
-            def colour(name, fallback):
-                inp = shader.GetInput(name)
-                value = inp.Get() if inp else None
-                return Gf.Vec3f(*(value if value is not None else fallback))
-            shader.CreateInput("emissiveColor", Sdf.ValueTypeNames.Color3f).Set(
-                colour("emissiveColor", (0, 0, 0)) + colour("diffuseColor", (0.18, 0.18, 0.18)))
-            shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(0, 0, 0))
-            shader.CreateInput("specularColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(0, 0, 0))
-            shader.CreateInput("useSpecularWorkflow", Sdf.ValueTypeNames.Int).Set(1)
-            shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(0.0)
-    out.GetRootLayer().Export(dst)
-    return dome
 
 
 def cycles_points(python: str, scene: str, frame: int, res: tuple[int, int], dome, spp: list[int], out_dir: str,
@@ -113,6 +84,7 @@ def main() -> None:
     ap.add_argument("--scenes", default=",".join(s[0] for s in SCENE_LIST))
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--ref-samples", type=int, help="reference instants (default 4096; 1024 with --quick)")
     args = ap.parse_args()
     python = bpy_python(args.python)
     if python is None:
@@ -124,7 +96,7 @@ def main() -> None:
             "stochastic": [{"samples": n} for n in (16, 64, 256)],
             "accumulation": [{"samples": n} for n in (16, 64, 256)]}
     spp = [16, 64, 256] if args.quick else [16, 64, 256, 1024]
-    ref_n = 1024 if args.quick else 4096
+    ref_n = args.ref_samples or (1024 if args.quick else 4096)
     peers_dir = os.path.join(OUT, "peers")
     os.makedirs(peers_dir, exist_ok=True)
     rows, summary = [], []
@@ -133,7 +105,7 @@ def main() -> None:
         if args.quick:
             res = (res[0] // 2, res[1] // 2)
         variant = os.path.join(peers_dir, f"{name}_emissive.usda")
-        dome = emissive_variant(os.path.join(SCENES, f"{name}.usda"), variant)
+        dome = emissive_variant(os.path.join(SCENES, f"{name}.usda"), variant, frame)
         bar.set_postfix_str(f"{name} reference ({ref_n})")
         ref = reference(variant, frame, res, ref_n)
         bar.update(1)
