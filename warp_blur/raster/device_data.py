@@ -186,9 +186,14 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
         # maps shared by many instants (accumulation) are uploaded once, not once per instant
         cached = shadows.device_arrays.get(device)
         if cached is None:
-            maps, faces, varying, slot_lights = face_slots(shadows)
+            # on the CPU the maps are laid out straight into the device array (no second copy)
+            dev_maps = wp.empty(slot_map_shape(shadows), dtype=float, device=device)
+            on_host = wp.get_device(device).is_cpu
+            maps, faces, varying, slot_lights = face_slots(shadows, dev_maps.numpy() if on_host else None)
+            if not on_host:
+                dev_maps.assign(maps)
             varying = varying if varying is not None else np.ones((1, 1, 1), np.uint8)
-            cached = (wp.array(maps, dtype=float, device=device), wp.array(varying, dtype=wp.uint8, device=device),
+            cached = (dev_maps, wp.array(varying, dtype=wp.uint8, device=device),
                       wp.array(faces, dtype=float, device=device), slot_lights)
             shadows.device_arrays[device] = cached
         s.shadow_maps, s.shadow_varying, s.shadow_faces, slot_lights = cached
@@ -205,15 +210,22 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
     return s
 
 
-def face_slots(data) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
-    """The kernels' layout of a frame's maps (a shadows.layout.ShadowData): (maps (slots, S, S, B) float32 with each face's B
-    instants side by side, faces (slots, FACE_WIDTH), varying (slots, S, S) uint8 or None, lights
-    (NL, 3) [first slot or -1, samples, faces]); slot first + m F + f is sample m, face f."""
-    b, s = data.times, data.size
+def slot_map_shape(data) -> tuple[int, int, int, int]:
+    """Shape (slots, S, S, B) of face_slots' maps for a frame's ShadowData."""
     slots = sum(int(m * f) for first, m, f in data.lights if first >= 0)
-    maps = np.empty((max(slots, 1), s, s, b), np.float32)
-    faces = np.zeros((max(slots, 1), data.faces.shape[1]), np.float32)
-    varying = np.zeros((max(slots, 1), s, s), np.uint8) if data.varying is not None else None
+    return (max(slots, 1), data.size, data.size, data.times)
+
+
+def face_slots(data, out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+    """The kernels' layout of a frame's maps (a shadows.layout.ShadowData): (maps (slots, S, S, B)
+    float32 with each face's B instants side by side, written into `out` when given, faces
+    (slots, FACE_WIDTH), varying (slots, S, S) uint8 or None, lights (NL, 3) [first slot or -1,
+    samples, faces]); slot first + m F + f is sample m, face f."""
+    b, s = data.times, data.size
+    shape = slot_map_shape(data)
+    maps = out if out is not None else np.empty(shape, np.float32)
+    faces = np.zeros((shape[0], data.faces.shape[1]), np.float32)
+    varying = np.zeros((shape[0], s, s), np.uint8) if data.varying is not None else None
     lights = data.lights.copy()
     k = 0
     for j, (first, m, f) in enumerate(data.lights):
@@ -221,7 +233,7 @@ def face_slots(data) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndar
             continue
         n = m * b * f
         block = data.maps[first:first + n].reshape(m, b, f, s, s)
-        maps[k:k + m * f] = block.transpose(0, 2, 3, 4, 1).reshape(m * f, s, s, b)
+        maps[k:k + m * f].reshape(m, f, s, s, b)[...] = block.transpose(0, 2, 3, 4, 1)   # no temporary
         faces[k:k + m * f] = data.faces[first:first + n].reshape(m, b, f, -1)[:, 0].reshape(m * f, -1)
         if varying is not None:
             varying[k:k + m * f] = data.varying[first:first + n].reshape(m, b, f, s, s)[:, 0].reshape(m * f, s, s)
