@@ -62,6 +62,7 @@ class Geometry:
     has_cutouts: int                        # 1 when some triangle has a cutout test (cutout.py)
     cutout_slots: int                       # time slots per shutter at which the analytic method tests a moving cutout
     presence_shift: int                     # added to fractional opacity's presence slot (cutout.py; 0 but in velocity passes)
+    clip_bits: int                          # analytic time bits (0: exact): near/far crossings bisected to 1/16 of a slot
     tex: Textures                           # the frame's textures (for cutout opacity)
 
 

@@ -83,6 +83,7 @@ def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.nda
     g.tri_alpha = tables.tri_alpha
     g.cutout_slots = 256   # the analytic method sets its own (its time bits)
     g.presence_shift = 0
+    g.clip_bits = 0   # the analytic method sets its time bits
     g.entry_tri = device_array(entry_tri.astype(np.int32), int, dev)
     g.entry_k0 = device_array(entry_k0.astype(np.int32), int, dev)
     g.entry_k1 = device_array(entry_k1.astype(np.int32), int, dev)

@@ -184,6 +184,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     dev = ctx.device
     plan, geo, (static_bins, moving_bins), sh, view = prepare_motion(ctx)
     geo.cutout_slots = bits if bits > 0 else EXACT_CUTOUT_SLOTS
+    geo.clip_bits = bits
     num_px = ctx.num_pixels
     rgba = wp.zeros((num_px, 4), dtype=float, device=dev)
     fallbacks, truncated, shaded = BandCounter(dev), BandCounter(dev), BandCounter(dev)

@@ -4,7 +4,7 @@ An entry's vertices move linearly in camera space over its span; where it covers
 found exactly by coverage.py (edge-function quadratics, their roots, a sign test per piece).
 Each covered piece is then:
 - clipped to the near/far planes: where the entry's vertex depths straddle a plane, the view
-  depth is sampled at 9 points and crossings are found by bisection (a *sampled fallback*,
+  depth is sampled at 9 points and crossings are found by bisection, to 1/16 of a time slot (a *sampled fallback*,
   counted in the stats as `near_far_fallbacks`);
 - split where view depth is far from linear (checked at the midpoint), each piece stored as an
   interval (u0, u1, z0, z1, entry); a cutout entry's piece keeps only the time slots where the
@@ -115,6 +115,21 @@ def emit_visible(geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, sx: f
 
 
 @wp.func
+def clip_steps(bits: int, width: float) -> int:
+    """Bisection steps that narrow a near/far crossing's bracket of `width` (shutter time) to 1/16
+    of a time slot (1/bits of the shutter): the resolve cannot tell the crossing apart more finely.
+    Exact mode (bits 0) bisects 24 times (float32's resolution of the piece)."""
+    if bits <= 0:
+        return 24
+    n = int(0)
+    w = width * float(16 * bits)
+    while w > 1.0 and n < 24:
+        w = w * 0.5
+        n += 1
+    return n
+
+
+@wp.func
 def emit_clipped(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, sx: float, sy: float, s_a: float,
                  s_b: float, may_clip: int,
                  limit: int, base: int, iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2),
@@ -128,13 +143,14 @@ def emit_clipped(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp
     prev_s = s_a
     prev_in = in_range(view, depth_at(m, o, d, s_a))
     start = s_a
+    steps = clip_steps(geo.clip_bits, (s_b - s_a) / float(CLIP_SAMPLES) * (m.u1 - m.u0))
     for i in range(1, CLIP_SAMPLES + 1):
         s = s_a + (s_b - s_a) * float(i) / float(CLIP_SAMPLES)
         now_in = in_range(view, depth_at(m, o, d, s))
         if now_in != prev_in:
             lo = prev_s
             hi = s
-            for _k in range(24):
+            for _k in range(steps):
                 mid = 0.5 * (lo + hi)
                 if in_range(view, depth_at(m, o, d, mid)) == prev_in:
                     lo = mid
