@@ -125,16 +125,15 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
         if record_bytes > ctx.settings.memory_budget_mb * 2**20:
             plan = None
     if plan is None:
-        for u in us:
-            ctx.sharp_pass(ctx.snapshot(float(u)), 1.0 / n, rgba)
+        for snap in _snapshots(ctx, us):
+            ctx.sharp_pass(snap, 1.0 / n, rgba)
     else:
         moving, steady = plan.pixels, plan.steady
         still = np.ones(ctx.num_pixels, bool)
         still[moving] = False
         still_px = np.nonzero(still)[0]
         hits = None
-        for i, u in enumerate(us):
-            snap = ctx.snapshot(float(u))
+        for i, snap in enumerate(_snapshots(ctx, us)):
             if i == 0 and steady:   # still tiles look the same at every instant: once, at full weight
                 ctx.sharp_pass(snap, 1.0, rgba, still_px)
             elif i == 0:            # still tiles see the same surfaces: find them once, shade per instant
@@ -146,3 +145,18 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
         ctx.counters["accumulation_still_shading"] = "once" if steady else "per instant"
     ctx.counters["instants"] = n
     return rgba.numpy()
+
+
+def _snapshots(ctx: FrameContext, us: np.ndarray):
+    """The snapshots at instants us in turn, each taken one step ahead and set as ctx.neighbour
+    of the one before (the last instant's neighbour is the one before it), so that shadow
+    lookups' receiver velocities need no snapshot of their own."""
+    ahead = ctx.snapshot(float(us[0]))
+    behind = None
+    for i in range(len(us)):
+        snap = ahead
+        ahead = ctx.snapshot(float(us[i + 1])) if i + 1 < len(us) else None
+        ctx.neighbour = ahead if ahead is not None else behind
+        yield snap
+        behind = snap
+    ctx.neighbour = None

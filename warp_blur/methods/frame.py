@@ -60,6 +60,7 @@ class FrameContext:
     aov_depth: np.ndarray | None = None
     _instant_shadows: ShadowMaps | None = None
     _velocities: tuple | None = None   # (snapshot time, (V, 3) velocities) of the last sharp instant
+    neighbour: Snapshot | None = None   # an adjacent sharp instant's snapshot (accumulation sets it)
     _shading_last: tuple | None = None   # (time, Shading) of the last instant shaded
     probe_snapshots: dict = field(default_factory=dict)   # shutter fraction -> Snapshot (static_frame's)
     instants: int = 1   # sharp instants this frame will shade (accumulation sets it)
@@ -236,16 +237,20 @@ class FrameContext:
         shadow maps of other instants (warped maps shared by the frame's instants), so that a
         moving receiver's lookups move with it; None when its maps are its own. The instant's
         shading knows the lights only as of this instant, in this instant's camera frame, so the
-        velocities are the vertices' world motion expressed in that frame (camera motion left out)."""
+        velocities are the vertices' world motion expressed in that frame (camera motion left out),
+        differenced against `neighbour` (the next instant, taken anyway) when it is set, else
+        against a snapshot a quarter of an instant away."""
         maps = self._instant_shadows
         if not maps or maps.static or maps.options.mode == "direct" or self.instants <= self.settings.shadow_times:
             return None
         if self._velocities is not None and self._velocities[0] == snapshot.time:
             return self._velocities[1]
         u = self.snapshot_fraction(snapshot)
-        h = 0.25 / self.instants
-        u2 = u + h if u + h <= 1.0 else u - h
-        other = self.snapshot(u2, with_normals=False)
+        other = self.neighbour
+        if other is None or other.time == snapshot.time or other.positions.shape != snapshot.positions.shape:
+            h = 0.25 / self.instants
+            other = self.snapshot(u + h if u + h <= 1.0 else u - h, with_normals=False)
+        u2 = self.snapshot_fraction(other)
         to_this_camera = np.linalg.inv(other.cam_from_world) @ snapshot.cam_from_world   # row vectors
         moved = other.positions @ to_this_camera[:3, :3] + to_this_camera[3, :3]
         velocities = (moved - snapshot.positions) / (u2 - u)

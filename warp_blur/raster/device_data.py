@@ -100,11 +100,12 @@ def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.nda
 def instant_frames(lights: np.ndarray, times: int) -> np.ndarray:
     """(NL * B, 12) float32: each light's local axes (rows x, y, z) and origin in camera space at
     map instant b = (b + 0.5) / B, from the tables at knots over the shutter (L+1, NL, W), read
-    as the kernels read them (light_table.light_value, shadow_lookup.light_axes)."""
+    as the kernels read them (light_table.light_value, shadow_lookup.light_axes). One knot (a
+    sharp instant's table): the same rows at every b, computed once."""
     segments = lights.shape[0] - 1
     nl = lights.shape[1]
     out = np.zeros((max(nl * times, 1), 12), np.float32)
-    for b in range(times):
+    for b in range(times if segments > 0 else 1):
         u = (b + 0.5) / times
         if segments == 0:
             row = lights[0].astype(np.float32)
@@ -119,6 +120,8 @@ def instant_frames(lights: np.ndarray, times: int) -> np.ndarray:
             ay = ay / max(np.linalg.norm(ay), 1e-30)
             out[j * times + b, 0:9] = np.concatenate([ax, ay, np.cross(ax, ay)])
             out[j * times + b, 9:12] = row[j, 4:7]
+    if segments == 0 and nl:
+        out[:nl * times] = np.repeat(out[0:nl * times:times], times, axis=0)
     return out
 
 
@@ -139,6 +142,17 @@ def texture_arrays(textures, device: str) -> Textures:
 
 
 _NO_TEXTURES: dict = {}
+_MATERIALS: dict = {}
+
+
+def _materials_array(materials: np.ndarray, device: str) -> wp.array:
+    """The material table on the device, uploaded once while the same table object is shaded
+    (a frame's sharp instants all share its table)."""
+    cached = _MATERIALS.get(device)
+    if cached is None or cached[0] is not materials:
+        cached = _MATERIALS[device] = (materials, wp.array(np.ascontiguousarray(materials, np.float32), dtype=float,
+                                                           device=device))
+    return cached[1]
 _NO_DOME_SH: dict = {}
 
 
@@ -166,7 +180,7 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
         s.dome_sh = wp.array(np.ascontiguousarray(coeffs, np.float32), dtype=wp.vec3, device=device)
     s.dome_rots = wp.array(np.ascontiguousarray(rots), dtype=wp.mat33, device=device)
     s.dome_segments = len(rots) - 1
-    s.materials = wp.array(np.ascontiguousarray(materials, np.float32), dtype=float, device=device)
+    s.materials = _materials_array(materials, device)
     nl = lights.shape[1]
     lt = lights if nl else np.zeros((lights.shape[0], 1, lights.shape[2]), np.float32)
     s.lights = wp.array(np.ascontiguousarray(lt, np.float32), dtype=float, device=device)
