@@ -142,6 +142,7 @@ def texture_arrays(textures, device: str) -> Textures:
 
 
 _NO_TEXTURES: dict = {}
+_NO_DOME_SH: dict = {}
 _MATERIALS: dict = {}
 
 
@@ -153,7 +154,6 @@ def _materials_array(materials: np.ndarray, device: str) -> wp.array:
         cached = _MATERIALS[device] = (materials, wp.array(np.ascontiguousarray(materials, np.float32), dtype=float,
                                                            device=device))
     return cached[1]
-_NO_DOME_SH: dict = {}
 
 
 def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, device: str,

@@ -4,8 +4,8 @@ An entry's vertices move linearly in camera space over its span; where it covers
 found exactly by coverage.py (edge-function quadratics, their roots, a sign test per piece).
 Each covered piece is then:
 - clipped to the near/far planes: where the entry's vertex depths straddle a plane, the view
-  depth is sampled at 9 points and crossings are found by bisection, to 1/16 of a time slot (a *sampled fallback*,
-  counted in the stats as `near_far_fallbacks`);
+  depth is sampled at 9 points and crossings are found by bisection to 1/16 of a time slot (a
+  *sampled fallback*, counted in the stats as `near_far_fallbacks`);
 - split where view depth is far from linear (checked at the midpoint), each piece stored as an
   interval (u0, u1, z0, z1, entry); a cutout entry's piece keeps only the time slots where the
   point it shows is not cut out (emit_visible). Nothing is shaded here: the resolve shades the intervals it
