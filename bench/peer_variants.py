@@ -11,6 +11,8 @@ does not carry them), so positions move linearly and orientations slerp between 
 
 from __future__ import annotations
 
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade
+
 _CUBE_POINTS = [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1), (-1, -1, 1), (1, -1, 1), (1, 1, 1), (-1, 1, 1)]
 _CUBE_QUADS = [0, 3, 2, 1, 4, 5, 6, 7, 0, 1, 5, 4, 2, 3, 7, 6, 1, 2, 6, 5, 0, 4, 7, 3]
 
@@ -18,7 +20,6 @@ _CUBE_QUADS = [0, 3, 2, 1, 4, 5, 6, 7, 0, 1, 5, 4, 2, 3, 7, 6, 1, 2, 6, 5, 0, 4,
 def emissive_variant(src: str, dst: str, frame: float) -> tuple[float, float, float]:
     """Write the emissive variant of stage src, for rendering `frame`, to dst; returns the dome's
     radiance (black if none)."""
-    from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade
     out = Usd.Stage.Open(Usd.Stage.Open(src).Flatten())
     dome = (0.0, 0.0, 0.0)
     for prim in list(out.Traverse()):
@@ -31,11 +32,11 @@ def emissive_variant(src: str, dst: str, frame: float) -> tuple[float, float, fl
             out.RemovePrim(prim.GetPath())
             continue
         if prim.IsA(UsdGeom.Cube):
-            _cube_as_mesh(prim, Gf, Sdf, UsdGeom)
+            _cube_as_mesh(prim)
         if prim.IsA(UsdGeom.Mesh):
             UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr().Set(UsdGeom.Tokens.none)
         if prim.IsA(UsdGeom.PointInstancer):
-            _bake_instancer_motion(UsdGeom.PointInstancer(prim), out, frame, Gf, Usd, UsdGeom)
+            _bake_instancer_motion(UsdGeom.PointInstancer(prim), out, frame)
         shader = UsdShade.Shader(prim)
         if shader and shader.GetIdAttr().Get() == "UsdPreviewSurface":
             def colour(name, fallback):
@@ -52,7 +53,7 @@ def emissive_variant(src: str, dst: str, frame: float) -> tuple[float, float, fl
     return dome
 
 
-def _cube_as_mesh(prim, Gf, Sdf, UsdGeom) -> None:
+def _cube_as_mesh(prim) -> None:
     """Turn a (static-size) Cube prim into the Mesh of its 6 faces, keeping xform ops and binding."""
     half = 0.5 * float(UsdGeom.Cube(prim).GetSizeAttr().Get())
     prim.RemoveProperty("size")
@@ -64,7 +65,7 @@ def _cube_as_mesh(prim, Gf, Sdf, UsdGeom) -> None:
     mesh.CreateFaceVertexIndicesAttr(_CUBE_QUADS)
 
 
-def _bake_instancer_motion(inst, stage, frame: float, Gf, Usd, UsdGeom) -> None:
+def _bake_instancer_motion(inst: UsdGeom.PointInstancer, stage: Usd.Stage, frame: float) -> None:
     """Replace a PointInstancer's velocities by positions/orientations sampled at shutter open and
     close of `frame` (ComputeInstanceTransformsAtTimes, so USD's own motion rules decide)."""
     if not (inst.GetVelocitiesAttr().HasAuthoredValue() or inst.GetAngularVelocitiesAttr().HasAuthoredValue()):
