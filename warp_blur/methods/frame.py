@@ -196,10 +196,8 @@ class FrameContext:
             margin = 1.0
             boxes, keep = entry_pixel_bounds(self.proj, positions, self.scene.tri_vertices, entry_tri,
                                              entry_k0, entry_k1, margin)
-            out = [bin_entries(self.proj, boxes, keep & group, TILE_SIZE, order_key) for group in groups]
             bands = swept_bands(self.proj, positions, self.scene.tri_vertices, entry_tri, entry_k0, entry_k1, margin)
-            for b in out:
-                b.entry_bands = bands
+            out = [bin_entries(self.proj, boxes, keep & group, TILE_SIZE, order_key, bands) for group in groups]
         self.counters["bin_pairs"] = self.counters.get("bin_pairs", 0) + sum(b.num_pairs for b in out)
         return out
 

@@ -132,11 +132,25 @@ def clipped_triangle_boxes(proj: Projection, tri: np.ndarray, margin: float) -> 
     return box
 
 
+def band_misses_tiles(bands: np.ndarray, tx: np.ndarray, ty: np.ndarray, tile_size: int) -> np.ndarray:
+    """(P,) True where the swept band (P, 4) of an entry (swept_bands) misses its tile (tx, ty)
+    altogether: no sample of the tile passes the kernels' band test (box_rejects), so the pair
+    need not be listed. The tile's range along the band's normal is its centre's ± the half
+    extent; a 1e-3 px slack keeps the answer on the kernels' side of float32 rounding."""
+    half = 0.5 * tile_size
+    nx, ny = bands[:, 0].astype(np.float64), bands[:, 1].astype(np.float64)
+    centre = nx * (tx * tile_size + half) + ny * (ty * tile_size + half)
+    reach = (np.abs(nx) + np.abs(ny)) * half + 1.0e-3
+    return (centre + reach < bands[:, 2]) | (centre - reach > bands[:, 3])
+
+
 def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size: int = TILE_SIZE,
-                order_key: np.ndarray | None = None) -> TileBins:
+                order_key: np.ndarray | None = None, bands: np.ndarray | None = None) -> TileBins:
     """Tile lists from entry pixel boxes (count, prefix sum, fill — on the host with NumPy). Each
     tile lists its entries in entry order, or by ascending order_key (E,) when given (e.g. the
-    nearest depth, so that kernels walking a list meet the front surfaces first)."""
+    nearest depth, so that kernels walking a list meet the front surfaces first). With swept
+    bands (E, 4) (swept_bands), a tile that an entry's box reaches but its band misses does not
+    list it: a diagonal streak's box holds many such tiles."""
     tiles_x = (proj.width + tile_size - 1) // tile_size
     tiles_y = (proj.height + tile_size - 1) // tile_size
     idx = np.nonzero(keep)[0]
@@ -153,6 +167,9 @@ def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size
     local = np.arange(total) - np.repeat(starts, counts)
     tx = tx0[rep] + local % w[rep]
     ty = ty0[rep] + local // w[rep]
+    if bands is not None and total:
+        hit = ~band_misses_tiles(np.asarray(bands)[idx[rep]], tx, ty, tile_size)
+        rep, tx, ty = rep[hit], tx[hit], ty[hit]
     tile = ty * tiles_x + tx
     if order_key is None:
         order = np.argsort(tile, kind="stable")
@@ -161,4 +178,5 @@ def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size
     entries = idx[rep[order]].astype(np.int32)
     per_tile = np.bincount(tile, minlength=tiles_x * tiles_y)
     offsets = np.concatenate([[0], np.cumsum(per_tile)]).astype(np.int32)
-    return TileBins(offsets, entries, tiles_x, tiles_y, np.asarray(boxes, np.float32))
+    return TileBins(offsets, entries, tiles_x, tiles_y, np.asarray(boxes, np.float32),
+                    None if bands is None else np.asarray(bands, np.float32))
