@@ -369,3 +369,21 @@ def test_quality_presets_trade_motion_segments_for_speed(scene_path):
     assert explicit.resolved_segment_error_px == 0.25 and explicit.resolved_segment_time_error == 0.001
     with pytest.raises(wb.SettingsError):
         RenderSettings(method="analytic", segment_error_px=0.0)
+
+
+def test_short_span_follows_the_shading_cap():
+    """An interval is shaded once when it is at most a quarter of one of the cap's n pieces of the
+    shutter long (1/(4n)), never less than 1/16: draft's cap of 2 shades intervals up to 1/8 once,
+    caps of 4 and more keep 1/16 (the default and final images do not change with the cap rule)."""
+    import warp as wp
+    from warp_blur.methods.analytic.resolve import short_span
+
+    @wp.kernel
+    def spans(caps: wp.array(dtype=int), out: wp.array(dtype=float)):
+        i = wp.tid()
+        out[i] = short_span(caps[i])
+
+    caps = wp.array([2, 3, 4, 16, 64], dtype=int, device="cpu")
+    out = wp.zeros(5, dtype=float, device="cpu")
+    wp.launch(spans, dim=5, inputs=[caps, out], device="cpu")
+    assert np.allclose(out.numpy(), [1 / 8, 1 / 12, 1 / 16, 1 / 16, 1 / 16])

@@ -6,7 +6,7 @@ nearest depth; for each interval I in that order, the slots where a *later* inte
 front of I (their depth lines cross inside the common span: the crossing time splits the span)
 are "stolen" from I. I's visible slots are bits(I) & ~covered & ~stolen; only then is I shaded
 (radiance.py): each of its linear sub-pieces contributes (its visible slots)/B × its radiance at
-their mean time (an interval at most SHORT_SPAN long: one shading at that mean; a still
+their mean time (an interval at most short_span(n) long: one shading at that mean; a still
 surface under moving shadows that is partly hidden: one per piece between the shadow maps'
 instants, shadow_pieces). I marks bits(I) & ~stolen covered; the loop stops when every slot is covered.
 The background fills the uncovered slots; alpha is the covered share.
@@ -37,6 +37,14 @@ INDEX_BIT_3 = wp.constant(wp.uint32(0xFF00FF00))
 INDEX_BIT_4 = wp.constant(wp.uint32(0xFFFF0000))
 #: intervals at most this long (shutter fraction) are shaded once, at their visible slots' mean
 SHORT_SPAN = wp.constant(1.0 / 16.0)
+
+
+@wp.func
+def short_span(n_shade_max: int) -> float:
+    """Longest interval (shutter fraction) shaded once: a quarter of a shading piece when the
+    cap n cuts the shutter into n pieces, 1/(4n), and never below SHORT_SPAN (1/16: caps of 4
+    and more). A low cap is a cheap preset (draft's 2: intervals up to 1/8 shaded once)."""
+    return wp.max(SHORT_SPAN, 0.25 / float(n_shade_max))
 
 
 @wp.func
@@ -146,7 +154,7 @@ def visible_radiance(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3,
     sub-pieces with visible slots."""
     m = entry_moving(geo, e)
     still = n_shade_max > 1 and sh.shadow_times > 1 and static_receiver(geo, sh, e, lights_static) != 0
-    short = n_shade_max > 1 and t[1] - t[0] <= SHORT_SPAN
+    short = n_shade_max > 1 and t[1] - t[0] <= short_span(n_shade_max)
     if still or short:
         slots = span_slots(t[0], t[1], bits)
         sums = slot_sums(masks, row, col, slots[0], slots[1])
