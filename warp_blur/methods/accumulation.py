@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from ..raster.binning import TILE_SIZE, entry_pixel_bounds
+from ..raster.binning import SAMPLE_MARGIN_PX, TILE_SIZE, entry_pixel_bounds
 from .frame import FrameContext
 
 #: tests switch this off to compare against rendering every pixel at every instant
@@ -102,7 +102,7 @@ def tile_rects(ctx: FrameContext, positions: np.ndarray, tris: np.ndarray, with_
     tiles_x = (proj.width + TILE_SIZE - 1) // TILE_SIZE
     tiles_y = (proj.height + TILE_SIZE - 1) // TILE_SIZE
     k = np.zeros(len(tris), np.int32)
-    boxes, keep = entry_pixel_bounds(proj, positions[None], ctx.scene.tri_vertices, tris, k, k, 1.0)
+    boxes, keep = entry_pixel_bounds(proj, positions[None], ctx.scene.tri_vertices, tris, k, k, SAMPLE_MARGIN_PX)
     b = boxes[keep]
     rect = (np.clip(np.floor(b[:, 0] / TILE_SIZE), 0, tiles_x - 1).astype(np.int64),
             np.clip(np.floor(b[:, 1] / TILE_SIZE), 0, tiles_y - 1).astype(np.int64),

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from ..raster.binning import TILE_SIZE, TileBins, bin_entries, entry_pixel_bounds, swept_bands
+from ..raster.binning import SAMPLE_MARGIN_PX, TILE_SIZE, TileBins, bin_entries, entry_pixel_bounds, swept_bands
 from ..core.camera import Projection
 from ..raster.culling import hidden_back_faces
 from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_shading, make_view
@@ -193,7 +193,7 @@ class FrameContext:
         so a kernel can walk e.g. a tile's static entries apart from its moving ones; each tile's
         list in ascending order_key (E,) when given (see bin_entries)."""
         with self.timed("binning"):
-            margin = 1.0
+            margin = SAMPLE_MARGIN_PX
             boxes, keep = entry_pixel_bounds(self.proj, positions, self.scene.tri_vertices, entry_tri,
                                              entry_k0, entry_k1, margin)
             bands = swept_bands(self.proj, positions, self.scene.tri_vertices, entry_tri, entry_k0, entry_k1, margin)
