@@ -5,14 +5,18 @@ A *face* is one depth image seen from a light: orthographic (distant lights) or 
 (one fitted frustum, or the six faces of a cube). Its row in `Shading.shadow_faces` holds the
 face's rotation in the light's local frame (rows 0-8), the light sample's offset in that frame
 (9-11), the window (12-15: x0, y0, x1, y1 on the plane at distance 1, or in scene units when
-orthographic), the ortho flag (16) and the near depth (17). face_from_cam is built at the lookup's
+orthographic), the ortho flag (16), the near depth (17) and the cube flag (18: a cube face,
+whose rows are signed unit axes and whose window is square about its axis; see face_coords). face_from_cam is built at the lookup's
 own time from the light table (the light's frame in camera space then), so a moving camera never
 shifts a shadow: maps are rigid with the light. Texel (i, j) of an S×S face covers window x in
 [x0 + i (x1-x0)/S, ...], y measured downwards from y1, as camera pixels are.
 
-Layout: a light's face slot (first + m F + f for sample m, face f) holds the depths of all its
-map instants side by side, shadow_maps[slot, y, x, b], so a lookup between two instants, and the
-lookups of neighbouring samples at other times, read the same cache lines.
+Layout: a light's face slot (first + m F + f for sample m, face f) is read as
+shadow_maps[slot, y, x, b] for map instant b. Where a pixel is shaded at many times (stochastic,
+analytic) the memory holds each texel's instants side by side, so a lookup between two instants
+and the lookups of neighbouring samples at other times read the same cache lines; for a sharp
+instant (accumulation), which reads one or two map instants, it holds each instant's image whole
+(a strided view, device_data.shadow_map_array), so the texels a pass reads stay in cache.
 
 Comparisons are averaged, never depths: a light's visibility at time u is the PCF comparison
 averaged over its M samples, linearly interpolated between the two maps whose instants bracket u
@@ -27,7 +31,7 @@ import warp as wp
 from .kernel_types import Shading
 from .light_table import light_vec
 
-FACE_WIDTH = 18
+FACE_WIDTH = 19
 #: receiver points this close (relative) in two maps' light frames are one point: float32
 #: rounding of a world-still point seen from a moving camera, far below a texel
 SAME_POINT_TOL = wp.constant(1.0e-5)
@@ -80,6 +84,13 @@ def face_coords(sh: Shading, f: int, pl: wp.vec3, nl: wp.vec3) -> wp.vec4:
     ortho = r[f, 16] > 0.5
     if not ortho and depth <= r[f, 17]:
         return wp.vec4(0.0, 0.0, 0.0, 0.0)
+    if r[f, 18] > 0.5:
+        # a cube face: the rotated coordinates are the other two of rel up to sign, so the window
+        # test below rejects exactly when the largest |component| over depth passes the window
+        # (depth itself is one of them and never does); decided before the rotation is loaded
+        big = wp.max(wp.max(wp.abs(rel[0]), wp.abs(rel[1])), wp.abs(rel[2]))
+        if big / depth > r[f, 14]:
+            return wp.vec4(0.0, 0.0, 0.0, 0.0)
     a = face_rotation(sh, f)
     q = a * rel
     x0 = r[f, 12]
@@ -231,25 +242,26 @@ def light_visibility_at(sh: Shading, j: int, u: float, p: wp.vec3, vel: wp.vec3,
     blend = frac > 0.0 and b1 != b0
     axes0 = wp.mat33()
     origin0 = wp.vec3()
-    axes1 = wp.mat33()
-    origin1 = wp.vec3()
     if times > 1:   # the light's frame at each map instant, tabled on the host
         axes0, origin0 = instant_frame(sh, j, b0)
-        axes1, origin1 = instant_frame(sh, j, b1)
     else:
         axes0 = light_axes(sh, j, t0)
         origin0 = light_vec(sh, j, 4, t0)
-        axes1 = axes0
-        origin1 = origin0
     # the receiver in the light's frame at each map's instant, once for all samples and faces
+    # (the second instant's only when blending: b1 != b0 implies times > 1)
     pl0 = axes0 * (p + (t0 - u) * vel - origin0)
     nl0 = axes0 * n
-    pl1 = axes1 * (p + (t1 - u) * vel - origin1)
-    nl1 = axes1 * n
-    # the same point in both maps (a light that holds still over a receiver that does, in the
-    # world, even where the camera moves: equal to rounding): one pass reads both instants'
-    # texels, which sit side by side
-    together = blend and wp.length(pl0 - pl1) <= SAME_POINT_TOL * wp.max(wp.length(pl0), 1.0)
+    pl1 = pl0
+    nl1 = nl0
+    together = False
+    if blend:
+        axes1, origin1 = instant_frame(sh, j, b1)
+        pl1 = axes1 * (p + (t1 - u) * vel - origin1)
+        nl1 = axes1 * n
+        # the same point in both maps (a light that holds still over a receiver that does, in the
+        # world, even where the camera moves: equal to rounding): one pass reads both instants'
+        # texels, which sit side by side
+        together = wp.length(pl0 - pl1) <= SAME_POINT_TOL * wp.max(wp.length(pl0), 1.0)
     total = float(0.0)
     for m in range(num_samples):
         slot = first + m * num_faces

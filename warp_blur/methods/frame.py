@@ -176,8 +176,10 @@ class FrameContext:
                     shadows = self._instant_shadows.data_for_instant(self.shutter_fraction(snapshots[0].time),
                                                                      self.instants, self.settings.shadow_times)
         one = self.snapshot_fraction(snapshots[0]) if len(snapshots) == 1 else None
+        # a sharp instant reads one or two map instants: each instant's images whole in memory
         sh = make_shading(self.scene.material_table, lights, self.scene.dome, self.device, shadows,
-                          self.shadow_options(), self.scene.materials.textures, self.dome_frame(one))
+                          self.shadow_options(), self.scene.materials.textures, self.dome_frame(one),
+                          instant_major=len(snapshots) == 1)
         if len(snapshots) == 1:
             self._shading_last = (snapshots[0].time, sh)
         return sh

@@ -157,12 +157,15 @@ def _materials_array(materials: np.ndarray, device: str) -> wp.array:
 
 
 def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, device: str,
-                 shadows=None, options=None, textures=None, dome_frame=None) -> Shading:
+                 shadows=None, options=None, textures=None, dome_frame=None, instant_major: bool = False) -> Shading:
     """lights: (L+1, NL, LIGHT_WIDTH) tables at L+1 knots over the shutter; shadows: a
     shadows.layout.ShadowData (or None: no light casts shadows) with its ShadowOptions; textures:
     the frame's textures.TextureSet (None: none); dome_frame: a textured dome as
     (binding, camera-to-dome rotations (R+1, 3, 3) for column vectors at even knots over the
-    shutter (one when it holds), irradiance SH (9, 3), lod), or None."""
+    shutter (one when it holds), irradiance SH (9, 3), lod), or None. instant_major: the maps'
+    memory holds each map instant's depth image whole (for a sharp instant, which reads one or
+    two of them) instead of each texel's instants side by side (for shading at many times per
+    pixel); the kernels index both alike (see shadow_map_array)."""
     s = Shading()
     s.tex = texture_arrays(textures, device)
     if dome_frame is None:
@@ -199,18 +202,19 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
         s.shadow_frames = wp.zeros((1, 12), dtype=float, device=device)
     else:
         # maps shared by many instants (accumulation) are uploaded once, not once per instant
-        cached = shadows.device_arrays.get(device)
+        cached = shadows.device_arrays.get((device, instant_major))
         if cached is None:
             # on the CPU the maps are laid out straight into the device array (no second copy)
-            dev_maps = wp.empty(slot_map_shape(shadows), dtype=float, device=device)
+            dev_maps = wp.empty(slot_map_shape(shadows, instant_major), dtype=float, device=device)
             on_host = wp.get_device(device).is_cpu
-            maps, faces, varying, slot_lights = face_slots(shadows, dev_maps.numpy() if on_host else None)
+            maps, faces, varying, slot_lights = face_slots(shadows, dev_maps.numpy() if on_host else None,
+                                                           instant_major)
             if not on_host:
                 dev_maps.assign(maps)
             varying = varying if varying is not None else np.ones((1, 1, 1), np.uint8)
-            cached = (dev_maps, wp.array(varying, dtype=wp.uint8, device=device),
+            cached = (shadow_map_array(dev_maps, instant_major), wp.array(varying, dtype=wp.uint8, device=device),
                       wp.array(faces, dtype=float, device=device), slot_lights)
-            shadows.device_arrays[device] = cached
+            shadows.device_arrays[(device, instant_major)] = cached
         s.shadow_maps, s.shadow_varying, s.shadow_faces, slot_lights = cached
         info = np.zeros((len(shadows.lights), 4), np.int32)
         info[:, :3] = slot_lights
@@ -225,19 +229,38 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
     return s
 
 
-def slot_map_shape(data) -> tuple[int, int, int, int]:
-    """Shape (slots, S, S, B) of face_slots' maps for a frame's ShadowData."""
-    slots = sum(int(m * f) for first, m, f in data.lights if first >= 0)
-    return (max(slots, 1), data.size, data.size, data.times)
+def slot_map_shape(data, instant_major: bool = False) -> tuple[int, int, int, int]:
+    """Shape (slots, S, S, B) of face_slots' maps for a frame's ShadowData ((slots, B, S, S) in
+    memory when instant_major)."""
+    slots = max(sum(int(m * f) for first, m, f in data.lights if first >= 0), 1)
+    if instant_major:
+        return (slots, data.times, data.size, data.size)
+    return (slots, data.size, data.size, data.times)
 
 
-def face_slots(data, out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+def shadow_map_array(maps: wp.array, instant_major: bool) -> wp.array:
+    """The kernels' (slots, S, S, B) view of maps laid out by face_slots: the array itself, or a
+    strided view of an instant-major (slots, B, S, S) array (the kernels index both the same way,
+    shadow_maps[slot, y, x, b]; the view holds `maps`, which owns the memory)."""
+    if not instant_major:
+        return maps
+    slots, b, s, _ = maps.shape
+    item = 4   # float32
+    view = wp.array(ptr=maps.ptr, shape=(slots, s, s, b), strides=(b * s * s * item, s * item, item, s * s * item),
+                    dtype=float, device=maps.device)
+    view.owner_array = maps   # a view made from a pointer does not keep its memory alive by itself
+    return view
+
+
+def face_slots(data, out: np.ndarray | None = None,
+               instant_major: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
     """The kernels' layout of a frame's maps (a shadows.layout.ShadowData): (maps (slots, S, S, B)
-    float32 with each face's B instants side by side, written into `out` when given, faces
-    (slots, FACE_WIDTH), varying (slots, S, S) uint8 or None, lights (NL, 3) [first slot or -1,
-    samples, faces]); slot first + m F + f is sample m, face f."""
+    float32 with each face's B instants side by side, or (slots, B, S, S) with each instant's image
+    whole when instant_major, written into `out` when given, faces (slots, FACE_WIDTH), varying
+    (slots, S, S) uint8 or None, lights (NL, 3) [first slot or -1, samples, faces]); slot
+    first + m F + f is sample m, face f."""
     b, s = data.times, data.size
-    shape = slot_map_shape(data)
+    shape = slot_map_shape(data, instant_major)
     maps = out if out is not None else np.empty(shape, np.float32)
     faces = np.zeros((shape[0], data.faces.shape[1]), np.float32)
     varying = np.zeros((shape[0], s, s), np.uint8) if data.varying is not None else None
@@ -248,7 +271,10 @@ def face_slots(data, out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndar
             continue
         n = m * b * f
         block = data.maps[first:first + n].reshape(m, b, f, s, s)
-        maps[k:k + m * f].reshape(m, f, s, s, b)[...] = block.transpose(0, 2, 3, 4, 1)   # no temporary
+        if instant_major:
+            maps[k:k + m * f].reshape(m, f, b, s, s)[...] = block.transpose(0, 2, 1, 3, 4)
+        else:
+            maps[k:k + m * f].reshape(m, f, s, s, b)[...] = block.transpose(0, 2, 3, 4, 1)   # no temporary
         faces[k:k + m * f] = data.faces[first:first + n].reshape(m, b, f, -1)[:, 0].reshape(m * f, -1)
         if varying is not None:
             varying[k:k + m * f] = data.varying[first:first + n].reshape(m, b, f, s, s)[:, 0].reshape(m * f, s, s)

@@ -208,6 +208,16 @@ def cube_faces(size: int) -> list[Face]:
     return faces
 
 
+def is_cube_face(face: Face) -> bool:
+    """True for a perspective face whose rows are signed unit axes of the light's frame and whose
+    window is a square symmetric about its axis (cube_faces): the lookup can then tell whether a
+    point is inside from its light-local coordinates alone (shadow_lookup.face_coords)."""
+    r = np.asarray(face.rotation)
+    axes = np.isin(r, (-1.0, 0.0, 1.0)).all() and (np.abs(r).sum(axis=1) == 1.0).all()
+    x0, y0, x1, y1 = face.window
+    return bool(not face.ortho and axes and x1 > 0 and x0 == -x1 and y0 == -x1 and y1 == x1)
+
+
 def fit_faces(kind: int, local: np.ndarray, size: int) -> list[Face]:
     """Faces of a light from light-local points (N, 3) of the geometry (all samples, probes)."""
     if kind == DISTANT:
