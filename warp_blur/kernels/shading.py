@@ -53,7 +53,9 @@ def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, diffuse: wp.vec3, f0: wp.vec3, roug
     return result
 
 
-@wp.func
+# inlined: an out-of-line Warp function receives its struct arguments by value (Shading is ~1 KB,
+# copied per call and light)
+@wp.func(inline=True)
 def direct_light(sh: Shading, j: int, u: float, du: float, p: wp.vec3, vel: wp.vec3, n: wp.vec3, v: wp.vec3,
                  diffuse: wp.vec3, f0: wp.vec3, roughness: float) -> wp.vec3:
     """Reflected radiance from light j at camera-space point p (moving with velocity vel, units

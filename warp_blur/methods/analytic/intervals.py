@@ -36,7 +36,8 @@ MAX_PIECES = 16
 CLIP_SAMPLES = 8
 
 
-@wp.func
+# inlined into each caller (it takes no struct): fill's hot path stores intervals without a call
+@wp.func(inline=True)
 def emit_pieces(e: int, m: Moving, o: wp.vec3, d: wp.vec3, s_a: float, s_b: float, limit: int, base: int,
                 iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int),
                 occ: wp.array2d(dtype=float), row: int, g: int, whole: int) -> int:
@@ -137,6 +138,8 @@ def emit_clipped(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp
                  g: int, whole: int) -> int:
     """Emit the part of a covered piece inside the clipping range (sampled when it may cross)."""
     if may_clip == 0:
+        if not has_cutout(geo, geo.entry_tri[e]):   # the common case, without emit_visible's copy of geo
+            return emit_pieces(e, m, o, d, s_a, s_b, limit, base, iv_t, iv_z, iv_e, occ, row, g, whole)
         return emit_visible(geo, e, m, o, d, sx, sy, s_a, s_b, limit, base, iv_t, iv_z, iv_e, occ, row, g, whole)
     wp.atomic_add(fallbacks, 0, 1)
     count = int(0)

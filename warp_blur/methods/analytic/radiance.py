@@ -23,7 +23,8 @@ from .moving import Moving, plane_hit
 SHADE_TOLERANCE = wp.constant(1.0 / 256.0)
 
 
-@wp.func
+# inlined: out of line, every shading would copy View, Geometry and Shading (~2 KB) by value
+@wp.func(inline=True)
 def radiance_at(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3, s: float,
                 span: float) -> wp.vec3:
     """Radiance of entry e (its triangle m) seen along the ray at entry time s, with shadows
