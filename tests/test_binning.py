@@ -48,3 +48,42 @@ def test_a_diagonal_streak_lists_only_the_tiles_along_it():
     tiles = set(np.unique((ys[inside] // TILE_SIZE).astype(int) * 40 + (xs[inside] // TILE_SIZE).astype(int)))
     listed = {t for t in range(40 * 30) if culled.tile_offsets[t + 1] > culled.tile_offsets[t]}
     assert tiles <= listed
+
+
+def test_a_moving_triangle_crossing_the_near_plane_is_boxed_by_its_part_in_front():
+    """entry_pixel_bounds: a moving entry whose vertices straddle the near plane gets the box of
+    its swept hull's part in front of the plane, which holds every point of the triangle, at any
+    time of its span, that is in front of the plane (so no sample the kernels keep is lost) and
+    is not the whole screen for a ground running under the camera."""
+    from warp_blur.raster.binning import entry_pixel_bounds
+    proj = Projection(False, (-0.5, -0.375, 0.5, 0.375), 0.5, 500.0, 640, 480)
+    rng = np.random.default_rng(11)
+    n = 300
+    # triangles around the eye's depth, moving by up to a few units: most cross the near plane
+    p0 = rng.uniform([-3.0, -3.0, -4.0], [3.0, 3.0, 1.0], (n, 3, 3))
+    p1 = p0 + rng.uniform(-2.0, 2.0, (n, 1, 3)) + rng.normal(0.0, 0.3, (n, 3, 3))
+    positions = np.concatenate([p0.reshape(1, -1, 3), p1.reshape(1, -1, 3)])     # knots 0, 1
+    tri_vertices = np.arange(3 * n).reshape(n, 3)
+    entry = np.arange(n)
+    boxes, keep = entry_pixel_bounds(proj, positions, tri_vertices, entry, np.zeros(n, int), np.ones(n, int), 0.05)
+    # points of each triangle at many times and barycentrics, in front of the near plane
+    s = rng.uniform(0.0, 1.0, (n, 400, 1))
+    w = rng.dirichlet((1.0, 1.0, 1.0), (n, 400))
+    a = p0[:, None] + s[..., None] * (p1 - p0)[:, None]                         # (n, 400, 3, 3)
+    pts = (w[..., None] * a).sum(axis=2)                                         # (n, 400, 3)
+    r = proj.project(pts)
+    # in front of the near plane and on screen: a sample there must find the entry in its tile
+    seen = (-pts[..., 2] >= proj.near) & (r[..., 0] >= 0) & (r[..., 0] <= 640) & (r[..., 1] >= 0) & (r[..., 1] <= 480)
+    crossing = ((-p0[..., 2] < proj.near) | (-p1[..., 2] < proj.near)).any(axis=1)
+    assert crossing.sum() > n // 3 and (seen.any(axis=1) & crossing).sum() > n // 10
+    for i in np.nonzero(seen.any(axis=1))[0]:
+        assert keep[i]
+        q = r[i][seen[i]]
+        assert (q[:, 0] >= boxes[i, 0]).all() and (q[:, 0] <= boxes[i, 2]).all()
+        assert (q[:, 1] >= boxes[i, 1]).all() and (q[:, 1] <= boxes[i, 3]).all()
+    # a ground quad running under a camera that trucks forward: its box is the lower screen only
+    ground = np.array([[[-5.0, -1.0, 2.0], [5.0, -1.0, 2.0], [0.0, -1.0, -30.0]]])
+    moved = ground + np.array([0.0, 0.0, 1.5])
+    box, _ = entry_pixel_bounds(proj, np.concatenate([ground, moved]), np.array([[0, 1, 2]]), np.array([0]),
+                                np.array([0]), np.array([1]), 0.05)
+    assert box[0, 1] > proj.height / 2 - 1    # nothing above the horizon (the screen's middle row)

@@ -67,9 +67,13 @@ def entry_pixel_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np
     still = crosses & (entry_k0 == entry_k1)
     if still.any():
         # a still entry crossing the near plane: the box of its part in front of the plane
-        box[still] = clipped_triangle_boxes(proj, corners(still), margin)
+        box[still] = clipped_hull_boxes(proj, corners(still), margin)
         crosses = crosses & ~still
-    box[crosses] = (-margin, -margin, proj.width + margin, proj.height + margin)
+    if crosses.any():
+        # a moving one: its triangle stays inside the hull of its six vertices, so the box of the
+        # hull's part in front of the plane (a ground running under a moving camera no longer
+        # takes the whole screen)
+        box[crosses] = clipped_hull_boxes(proj, pts[:, crosses], margin)
     finite = np.isfinite(box).all(axis=1)
     box[~finite] = (-margin, -margin, proj.width + margin, proj.height + margin)
     keep &= (box[:, 2] >= 0) & (box[:, 0] <= proj.width) & (box[:, 3] >= 0) & (box[:, 1] <= proj.height)
@@ -108,26 +112,30 @@ def swept_bands(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarra
     return out
 
 
-def clipped_triangle_boxes(proj: Projection, tri: np.ndarray, margin: float) -> np.ndarray:
-    """Pixel boxes (N, 4) of triangles (3, N, 3) (camera space, perspective) clipped to the near
-    plane: the projections of their vertices in front of it and of their edges' crossings of it.
-    A triangle crossing the plane of a shadow cube face or of a camera above a ground plane would
-    otherwise get the whole screen, and every tile would test it."""
-    depth = -tri[..., 2]                                                   # (3, N)
-    cand = [tri[i] for i in range(3)]
-    ok = [depth[i] >= proj.near for i in range(3)]
-    for i, j in ((0, 1), (1, 2), (2, 0)):
-        di, dj = depth[i] - proj.near, depth[j] - proj.near
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            s = di / (di - dj)
-            cand.append(tri[i] + s[:, None] * (tri[j] - tri[i]))
-        ok.append((di * dj < 0) & np.isfinite(s))
-    pts = np.stack(cand)                                                   # (6, N, 3)
-    valid = np.stack(ok)                                                   # (6, N)
+def clipped_hull_boxes(proj: Projection, pts: np.ndarray, margin: float) -> np.ndarray:
+    """Pixel boxes (N, 4) of the convex hulls of K camera-space points each (K, N, 3; perspective)
+    clipped to the near plane: the projections of the points in front of it and of the crossings
+    of the plane by the segments between them (the clipped hull's corners are among those). A
+    triangle (K = 3) crossing the plane of a shadow cube face or of a camera above a ground plane,
+    or a moving triangle's six vertices (K = 6), would otherwise get the whole screen, and every
+    tile would test it."""
+    k = pts.shape[0]
+    depth = -pts[..., 2]                                                   # (K, N)
+    cand = [pts[i] for i in range(k)]
+    ok = [depth[i] >= proj.near for i in range(k)]
+    for i in range(k):
+        for j in range(i + 1, k):
+            di, dj = depth[i] - proj.near, depth[j] - proj.near
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                s = di / (di - dj)
+                cand.append(pts[i] + s[:, None] * (pts[j] - pts[i]))
+            ok.append((di * dj < 0) & np.isfinite(s))
+    cand = np.stack(cand)                                                  # (K + K(K-1)/2, N, 3)
+    valid = np.stack(ok)
     # a crossing lies on the plane: give it the plane's depth exactly (no division by ~0)
-    pts[3:, :, 2] = np.where(valid[3:], -max(proj.near, 1e-30), pts[3:, :, 2])
+    cand[k:, :, 2] = np.where(valid[k:], -max(proj.near, 1e-30), cand[k:, :, 2])
     with np.errstate(divide="ignore", invalid="ignore"):
-        r = proj.project(pts)                                              # (6, N, 2)
+        r = proj.project(cand)                                             # (C, N, 2)
     valid &= np.isfinite(r).all(axis=-1)
     lo = np.where(valid[..., None], r, np.inf).min(axis=0) - margin
     hi = np.where(valid[..., None], r, -np.inf).max(axis=0) + margin
