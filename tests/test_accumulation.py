@@ -91,6 +91,31 @@ def test_still_tiles_reshaded_per_instant_equal_every_instant(scene_path, monkey
     assert np.abs(once.rgba - every.rgba).max() < 1e-5
 
 
+def test_still_tiles_under_shadows_that_never_change_render_once(scene_path, monkeypatch):
+    """Nothing moves, so the light's shadow map is the same at every instant, but a translucent
+    (fractional opacity) occluder makes every instant differ where it is: the other tiles look the
+    same at every instant, shadow included, and are rendered once, equal to every instant."""
+    from pxr import Sdf, Usd, UsdShade
+    from scenes import shadow_stage
+    import warp_blur.methods.accumulation as accumulation
+    path = shadow_stage(scene_path())
+    stage = Usd.Stage.Open(path)
+    surface = UsdShade.Shader.Get(stage, "/World/Looks/Dark/PreviewSurface")
+    surface.GetInput("opacity").Set(0.5)
+    surface.CreateInput("opacityThreshold", Sdf.ValueTypeNames.Float).Set(0.0)
+    stage.GetRootLayer().Save()
+    kw = dict(frame=1, resolution=(96, 72), samples=12, aovs=(), shadow_map_size=256)
+    once = wb.render(path, **kw)
+    assert once.stats["accumulation_still_shading"] == "once"
+    assert once.stats["shadow_maps_rendered"] == 1
+    assert 0.5 < once.stats["accumulation_still_pixels"] < 0.98
+    monkeypatch.setattr(accumulation, "STATIC_TILES", False)
+    every = wb.render(path, **kw)
+    assert np.abs(once.rgba - every.rgba).max() < 1e-5
+    unshadowed = wb.render(path, shadows="off", **kw)
+    assert np.abs(once.rgba - unshadowed.rgba).max() > 0.05    # the occluder's shadow is there
+
+
 def test_recorded_hits_stay_within_the_memory_budget(scene_path):
     from scenes import shadow_stage
     path = shadow_stage(scene_path(), occluder_samples={0.5: (-1.0, 1.0, 0.0), 1.5: (1.0, 1.0, 0.0)})

@@ -2,7 +2,8 @@
 
 Only the work the scene requires: screen tiles that no moving (or appearing) triangle touches at
 any of the N instants see the same surfaces at every instant. Under lights that hold still and
-cast no shadow they look the same too, and are rendered once; otherwise their visibility is
+cast no shadow, or whose shadow maps are the same at every instant (nothing moves in the lights'
+views), they look the same too, and are rendered once; otherwise their visibility is
 found once and only their shading is redone per instant. The other tiles are rendered at every
 instant. The result is the same average (tested against rendering every pixel at every instant).
 """
@@ -32,7 +33,8 @@ def instants(n: int) -> np.ndarray:
 class MovingTiles:
     """pixels: flat indices (ascending) of the pixels in screen tiles that a triangle which moves
     or changes visibility covers (by its screen box) at one of the instants; steady: shading is
-    the same at every instant too (lights that hold still and cast no shadow); needed (T,) bool:
+    the same at every instant too (lights that hold still and cast no shadow, or whose shadow maps
+    are the same at every instant); needed (T,) bool:
     the triangles that can show in those tiles (the moving ones and still ones whose box meets
     a moving tile)."""
 
@@ -48,7 +50,11 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
     whenever they do not differ from it)."""
     scene = ctx.scene
     first = ctx.snapshot(float(us[0]), with_normals=False)
-    steady = not (ctx.may_cast_shadows() and len(first.lights) and (first.lights[:, 17] > 0.5).any())
+    casts = ctx.may_cast_shadows() and len(first.lights) and (first.lights[:, 17] > 0.5).any()
+    # shadows leave still pixels alike too when every instant shades with the same maps (nothing
+    # moves in any light's view: ShadowMaps.static; lights that move are caught below)
+    maps = ctx.instant_shadow_maps() if casts else None
+    steady = not casts or maps is None or maps.static
     num_tris = scene.num_triangles
     still_v = np.ones(len(first.positions), bool)
     same_vis = np.ones(num_tris, bool)

@@ -158,6 +158,16 @@ class FrameContext:
             return 0.5
         return (time_code - self.shutter.open) / (self.shutter.close - self.shutter.open)
 
+    def instant_shadow_maps(self) -> ShadowMaps | None:
+        """The shadow maps the frame's sharp instants shade with (made on first use; None when no
+        light can cast a visible shadow)."""
+        if self._instant_shadows is None:
+            def sample_at(u: float) -> Sample:
+                snap = self.scene.snapshot(self.shutter.time(u), with_normals=False)
+                return Sample(snap.positions, snap.tri_visible, snap.lights)
+            self._instant_shadows = self.shadow_maps(sample_at) or False
+        return self._instant_shadows or None
+
     def shading(self, snapshots: list[Snapshot]):
         """Shading tables for one sharp instant (with that instant's shadow maps; the last
         instant's are kept, since several passes may shade the same instant)."""
@@ -166,15 +176,11 @@ class FrameContext:
         lights = np.stack([s.lights for s in snapshots]) if snapshots else np.zeros((1, 0, 18), np.float32)
         shadows = None
         if len(snapshots) == 1:
-            if self._instant_shadows is None:
-                def sample_at(u: float) -> Sample:
-                    snap = self.scene.snapshot(self.shutter.time(u), with_normals=False)
-                    return Sample(snap.positions, snap.tri_visible, snap.lights)
-                self._instant_shadows = self.shadow_maps(sample_at) or False
-            if self._instant_shadows:
+            maps = self.instant_shadow_maps()
+            if maps is not None:
                 with self.timed("shadow_total"):
-                    shadows = self._instant_shadows.data_for_instant(self.shutter_fraction(snapshots[0].time),
-                                                                     self.instants, self.settings.shadow_times)
+                    shadows = maps.data_for_instant(self.shutter_fraction(snapshots[0].time), self.instants,
+                                                    self.settings.shadow_times)
         one = self.snapshot_fraction(snapshots[0]) if len(snapshots) == 1 else None
         # a sharp instant reads one or two map instants: each instant's images whole in memory
         sh = make_shading(self.scene.material_table, lights, self.scene.dome, self.device, shadows,
