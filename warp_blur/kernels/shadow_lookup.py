@@ -6,9 +6,9 @@ A *face* is one depth image seen from a light: orthographic (distant lights) or 
 face's rotation in the light's local frame (rows 0-8), the light sample's offset in that frame
 (9-11), the window (12-15: x0, y0, x1, y1 on the plane at distance 1, or in scene units when
 orthographic), the ortho flag (16), the near depth (17) and the cube flag (18: a cube face,
-whose rows are signed unit axes and whose window is square about its axis; see face_coords). face_from_cam is built at the lookup's
-own time from the light table (the light's frame in camera space then), so a moving camera never
-shifts a shadow: maps are rigid with the light. Texel (i, j) of an S×S face covers window x in
+whose rows are signed unit axes and whose window is square about its axis; see face_coords).
+face_from_cam is built at the lookup's own time from the light table (the light's frame in camera
+space then), so a moving camera never shifts a shadow: maps are rigid with the light. Texel (i, j) of an S×S face covers window x in
 [x0 + i (x1-x0)/S, ...], y measured downwards from y1, as camera pixels are.
 
 Layout: a light's face slot (first + m F + f for sample m, face f) is read as

@@ -55,6 +55,9 @@ class Face:
     window: tuple[float, float, float, float]
     ortho: bool
     near: float
+    #: one of cube_faces: rows signed unit axes, a square window about its axis, so a lookup can
+    #: tell from light-local coordinates alone whether a point is inside (shadow_lookup.face_coords)
+    cube: bool = False
 
     def projection(self, size: int) -> Projection:
         return Projection(self.ortho, self.window, self.near, FAR, size, size)
@@ -204,18 +207,8 @@ def cube_faces(size: int) -> list[Face]:
             z = np.zeros(3)
             z[axis] = -sign   # the face looks down its -z: towards sign * axis
             x = perpendicular(z)
-            faces.append(Face(np.stack([x, np.cross(z, x), z]), (-pad, -pad, pad, pad), False, 0.0))
+            faces.append(Face(np.stack([x, np.cross(z, x), z]), (-pad, -pad, pad, pad), False, 0.0, cube=True))
     return faces
-
-
-def is_cube_face(face: Face) -> bool:
-    """True for a perspective face whose rows are signed unit axes of the light's frame and whose
-    window is a square symmetric about its axis (cube_faces): the lookup can then tell whether a
-    point is inside from its light-local coordinates alone (shadow_lookup.face_coords)."""
-    r = np.asarray(face.rotation)
-    axes = np.isin(r, (-1.0, 0.0, 1.0)).all() and (np.abs(r).sum(axis=1) == 1.0).all()
-    x0, y0, x1, y1 = face.window
-    return bool(not face.ortho and axes and x1 > 0 and x0 == -x1 and y0 == -x1 and y1 == x1)
 
 
 def fit_faces(kind: int, local: np.ndarray, size: int) -> list[Face]:

@@ -40,8 +40,8 @@ from ..core.parallel import default_threads, launch_pixels, map_threads
 from ..kernels.shadow_lookup import FACE_WIDTH
 from ..kernels.shadow_raster import warp_texels
 from .direct import STILL_PROBES, FaceRasterizer, still_triangles
-from .layout import (FAR, Face, KeyMesh, LightLayout, Sample, ShadowData, ShadowOptions, fit_faces, is_cube_face,
-                     light_frame, light_sample_offsets, varying_texels)
+from .layout import (FAR, Face, KeyMesh, LightLayout, Sample, ShadowData, ShadowOptions, fit_faces, light_frame,
+                     light_sample_offsets, varying_texels)
 
 #: cells whose key depths differ by more than this many cell widths are cut (depth discontinuity)
 JUMP_CELLS = 8.0
@@ -499,7 +499,7 @@ class ShadowMaps:
                         faces[idx, 12:16] = face.window
                         faces[idx, 16] = 1.0 if face.ortho else 0.0
                         faces[idx, 17] = face.near if not face.ortho else -FAR
-                        faces[idx, 18] = 1.0 if is_cube_face(face) else 0.0
+                        faces[idx, 18] = 1.0 if face.cube else 0.0
                         idx += 1
             self._render_direct(lay, jobs, maps)
         varying = None
