@@ -16,7 +16,7 @@ from ..raster.culling import hidden_back_faces
 from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_shading, make_view
 from ..kernels.kernel_types import Geometry
 from ..core import progress
-from ..core.parallel import launch_pixels
+from ..core.parallel import FINE_BANDS, launch_pixels
 from ..kernels.raster import render_depth_motion, render_sharp, shade_recorded
 from ..usd.scene import Scene, Snapshot
 from ..core.settings import RenderSettings
@@ -307,7 +307,8 @@ class FrameContext:
         with self.timed("render"):
             launch_pixels(render_sharp, count,
                           lambda first, _n: [view, geo, sh, b, u, weight, listed, 0 if pixels is None else 1, first,
-                                             1 if record else 0, rgba, rec_e, rec_hit], dev, self.settings.threads)
+                                             1 if record else 0, rgba, rec_e, rec_hit], dev, self.settings.threads,
+                          bands_per_thread=FINE_BANDS)
         return RecordedHits(view, listed, rec_e, rec_hit) if record else None
 
     def reshade_pass(self, snapshot: Snapshot, hits: "RecordedHits", weight: float, rgba: wp.array) -> None:
@@ -324,7 +325,8 @@ class FrameContext:
         with self.timed("render"):
             launch_pixels(shade_recorded, hits.pixels.shape[0],
                           lambda first, _n: [hits.view, geo, sh, u, weight, hits.pixels, first, hits.entries,
-                                             hits.hits, rgba], self.device, self.settings.threads)
+                                             hits.hits, rgba], self.device, self.settings.threads,
+                          bands_per_thread=FINE_BANDS)
 
     def depth_motion(self, snapshots: list[Snapshot] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Z (H, W) and motion (H, W, 2) AOVs of the surface seen at the shutter centre."""

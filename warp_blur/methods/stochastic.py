@@ -19,7 +19,7 @@ from .frame import FrameContext
 from ..kernels.cutout import cutout_hides
 from ..kernels.dome import dome_at, dome_over
 from ..kernels.kernel_types import Bins, Geometry, Shading, View
-from ..core.parallel import launch_pixels
+from ..core.parallel import FINE_BANDS, launch_pixels
 from ..kernels.raster import add_pixel, box_rejects, pixel_tile
 from ..kernels.rays import entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin, static_entry_hit
 from ..kernels.shading import shade_entry_hit, shade_entry_hit_span
@@ -171,7 +171,8 @@ def render_stochastic(ctx: FrameContext) -> np.ndarray:
                     wp.empty((count, n), dtype=int, device=dev), rgba]
 
         with ctx.timed("render"):
-            launch_pixels(render_stochastic_kernel, ctx.num_pixels, inputs, dev, s.threads, max_band=max_band)
+            launch_pixels(render_stochastic_kernel, ctx.num_pixels, inputs, dev, s.threads, max_band=max_band,
+                          bands_per_thread=FINE_BANDS)
     ctx.counters.update({"samples_per_pixel": n, "seed": s.resolved_seed,
                          "motion_segments": plan.segments_per_prim, "entries": int(len(plan.entry_tri))})
     return rgba.numpy()
