@@ -9,7 +9,7 @@ import warp as wp
 
 from .cutout import cutout_hides
 from .kernel_types import Bins, Geometry, View
-from .raster import box_rejects, centre_ray, nearest_at_centre, to_raster
+from .raster import centre_ray, nearest_at_centre, to_raster
 from .rays import edge_cross, entry_vertex, hit_through_edges, intersect_triangle
 
 
@@ -69,25 +69,80 @@ def row_span(a: wp.vec3, b: wp.vec3, c: wp.vec3, y: float) -> wp.vec2:
     return wp.vec2(lo - margin, hi + margin)
 
 
+@wp.func
+def grow_box(box: wp.vec4, r: wp.vec3) -> wp.vec4:
+    """box (x0, y0, x1, y1) grown to hold raster point r (x, y)."""
+    return wp.vec4(wp.min(box[0], r[0]), wp.min(box[1], r[1]), wp.max(box[2], r[0]), wp.max(box[3], r[1]))
+
+
+@wp.func
+def near_crossing(view: View, p: wp.vec3, q: wp.vec3) -> wp.vec3:
+    """Raster point where segment pq crosses the near plane (its depth set to the plane's exactly)."""
+    dp = -p[2] - view.near
+    dq = -q[2] - view.near
+    x = p + (dp / (dp - dq)) * (q - p)
+    return to_raster(view, wp.vec3(x[0], x[1], -view.near))
+
+
+@wp.func
+def clipped_box(view: View, a: wp.vec3, b: wp.vec3, c: wp.vec3, margin: float) -> wp.vec4:
+    """Raster box (x0, y0, x1, y1) of triangle abc's part in front of the near plane (all of it
+    when orthographic), widened by margin: the box binning.entry_pixel_bounds gives a still
+    triangle on the host, here per launch instead of per map on the host. Empty (x0 > x1) when no
+    part is in front or all of it lies beyond the far plane."""
+    empty = wp.vec4(1.0, 1.0, 0.0, 0.0)
+    za = -a[2]
+    zb = -b[2]
+    zc = -c[2]
+    if view.ortho == 0:
+        if za > view.far and zb > view.far and zc > view.far:
+            return empty
+    box = wp.vec4(wp.inf, wp.inf, -wp.inf, -wp.inf)
+    if view.ortho != 0 or (za >= view.near and zb >= view.near and zc >= view.near):
+        box = grow_box(grow_box(grow_box(box, to_raster(view, a)), to_raster(view, b)), to_raster(view, c))
+    else:
+        if za >= view.near:
+            box = grow_box(box, to_raster(view, a))
+        if zb >= view.near:
+            box = grow_box(box, to_raster(view, b))
+        if zc >= view.near:
+            box = grow_box(box, to_raster(view, c))
+        if (za - view.near) * (zb - view.near) < 0.0:
+            box = grow_box(box, near_crossing(view, a, b))
+        if (zb - view.near) * (zc - view.near) < 0.0:
+            box = grow_box(box, near_crossing(view, b, c))
+        if (zc - view.near) * (za - view.near) < 0.0:
+            box = grow_box(box, near_crossing(view, c, a))
+    if not (box[0] <= box[2] and box[1] <= box[3]):
+        return empty
+    return wp.vec4(box[0] - margin, box[1] - margin, box[2] + margin, box[3] + margin)
+
+
 @wp.kernel(enable_backward=False)
-def splat_shadow_depth(view: View, geo: Geometry, bins: Bins, entries: wp.array(dtype=int), row_lo: int,
-                       row_hi: int,
+def splat_shadow_depth(view: View, geo: Geometry, row_lo: int, row_hi: int,
                        # in/out
                        depth: wp.array(dtype=float)):
-    """depth[texel] = min(depth[texel], entry's depth there) for entry entries[tid] over the
-    texel centres of its box within rows [row_lo, row_hi) (the pairs the texel walk of
-    render_shadow_texels tests, with the same hit test): few, small triangles over a base map
-    cost their own area, not the map's. Launches for disjoint row bands may run in parallel."""
-    e = entries[wp.tid()]
-    box = bins.entry_boxes[e]
-    x0 = wp.max(int(wp.ceil(box[0] - 0.5)), 0)
-    x1 = wp.min(int(wp.floor(box[2] - 0.5)), view.width - 1)
-    y0 = wp.max(int(wp.ceil(box[1] - 0.5)), row_lo)
-    y1 = wp.min(int(wp.floor(box[3] - 0.5)), wp.min(view.height, row_hi) - 1)
+    """depth[texel] = min(depth[texel], entry's depth there) for entry tid (static, in face
+    space) over the texel centres of its box within rows [row_lo, row_hi) (the pairs the texel
+    walk of render_shadow_texels tests, with the same hit test): few, small triangles over a base
+    map cost their own area, not the map's. The box is computed here (clipped_box), so a face
+    costs the host no binning. Launches for disjoint row bands may run in parallel."""
+    e = wp.tid()
     vi = geo.tri_vertices[geo.entry_tri[e]]
     a = entry_vertex(geo, e, vi[0], 0.0)
     b = entry_vertex(geo, e, vi[1], 0.0)
     c = entry_vertex(geo, e, vi[2], 0.0)
+    box = clipped_box(view, a, b, c, 1.0)
+    if not (box[0] <= box[2]):
+        return
+    # clamped before the conversion to int (a vertex just in front of the eye projects far out)
+    limit = float(4 * (view.width + view.height))
+    x0 = wp.max(int(wp.ceil(wp.clamp(box[0], -limit, limit) - 0.5)), 0)
+    x1 = wp.min(int(wp.floor(wp.clamp(box[2], -limit, limit) - 0.5)), view.width - 1)
+    y0 = wp.max(int(wp.ceil(wp.clamp(box[1], -limit, limit) - 0.5)), row_lo)
+    y1 = wp.min(int(wp.floor(wp.clamp(box[3], -limit, limit) - 0.5)), wp.min(view.height, row_hi) - 1)
+    if x0 > x1 or y0 > y1:
+        return
     # a perspective face's rays all start at the eye (the origin): the edges' cross products
     # are the triangle's own, computed once (the same values intersect_triangle computes)
     c_ab = edge_cross(a, b, vi[0], vi[1])
@@ -108,17 +163,16 @@ def splat_shadow_depth(view: View, geo: Geometry, bins: Bins, entries: wp.array(
             lo = wp.max(x0, int(wp.ceil(xr[0] - 0.5)))
             hi = wp.min(x1, int(wp.floor(xr[1] - 0.5)))
         for px in range(lo, hi + 1):
-            if not box_rejects(bins, e, float(px) + 0.5, float(py) + 0.5):
-                o, d = centre_ray(view, py * view.width + px)
-                hit = wp.vec4(0.0)
-                if view.ortho == 0:
-                    hit = hit_through_edges(d, a, b, c, c_ab, c_bc, c_ca)
-                else:
-                    hit = intersect_triangle(o, d, a, b, c, vi)
-                if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
-                    if not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3], 0.0, float(px) + 0.5,
-                                        float(py) + 0.5):
-                        wp.atomic_min(depth, py * view.width + px, hit[1])
+            o, d = centre_ray(view, py * view.width + px)
+            hit = wp.vec4(0.0)
+            if view.ortho == 0:
+                hit = hit_through_edges(d, a, b, c, c_ab, c_bc, c_ca)
+            else:
+                hit = intersect_triangle(o, d, a, b, c, vi)
+            if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
+                if not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3], 0.0, float(px) + 0.5,
+                                    float(py) + 0.5):
+                    wp.atomic_min(depth, py * view.width + px, hit[1])
 
 
 @wp.kernel(enable_backward=False)

@@ -11,7 +11,7 @@ import warp as wp
 
 from ..core.parallel import launch_pixels, launch_row_bands
 from ..kernels.shadow_raster import render_shadow_texels, splat_shadow_depth
-from ..raster.binning import TILE_SIZE, TileBins, bin_entries, entry_pixel_bounds
+from ..raster.binning import TILE_SIZE, bin_entries, entry_pixel_bounds
 from ..raster.device_data import TriangleTables, device_array, make_bins, make_geometry, make_view
 from .layout import Face, Sample, light_frame
 
@@ -53,11 +53,9 @@ class FaceRasterizer:
     def __init__(self, tables: TriangleTables, tri_vertices: np.ndarray, size: int, device: str) -> None:
         self.tables, self.tri_vertices, self.size, self.device = tables, tri_vertices, size, device
 
-    def scene(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, subset: np.ndarray | None,
-              tiles: bool = True):
-        """(view, geometry, device bins, kept entries (K,)) of the face at sample s, with the
-        visible triangles (of `subset`, a (T,) mask, when given). With tiles False the bins carry
-        only the entries' boxes (enough for splatting)."""
+    def _face_geometry(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, subset: np.ndarray | None):
+        """(projection, face-space positions (V, 3), visible triangles (of `subset`, a (T,) mask,
+        when given) (N,), their geometry, view) of the face at sample s."""
         q = s.positions @ a.T + t
         proj = face.projection(self.size)
         visible = s.tri_visible if len(s.tri_visible) else np.zeros(len(self.tri_vertices), bool)
@@ -65,36 +63,42 @@ class FaceRasterizer:
             visible = visible & subset
         tris = np.nonzero(visible)[0].astype(np.int32)
         k = np.zeros(len(tris), np.int32)
-        boxes, keep = entry_pixel_bounds(proj, q[None], self.tri_vertices, tris, k, k, 1.0)
-        if tiles:
-            bins = bin_entries(proj, boxes, keep, TILE_SIZE)
-        else:
-            bins = TileBins(np.zeros(1, np.int32), np.zeros(0, np.int32), 0, 0, np.asarray(boxes, np.float32))
         geo = make_geometry(self.tables, q[None], None, tris, k, k)
-        view = make_view(proj, 1, bins if tiles else None, TILE_SIZE)
+        return proj, q, tris, geo
+
+    def scene(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, subset: np.ndarray | None):
+        """(view, geometry, device tile bins) of the face at sample s, with the visible triangles
+        (of `subset`, a (T,) mask, when given)."""
+        proj, q, tris, geo = self._face_geometry(a, t, face, s, subset)
+        k = np.zeros(len(tris), np.int32)
+        boxes, keep = entry_pixel_bounds(proj, q[None], self.tri_vertices, tris, k, k, 1.0)
+        bins = bin_entries(proj, boxes, keep, TILE_SIZE)
+        view = make_view(proj, 1, bins, TILE_SIZE)
         view.near = face.near
-        return view, geo, make_bins(bins, self.device), np.nonzero(keep)[0]
+        return view, geo, make_bins(bins, self.device)
 
     def depth_over(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, subset: np.ndarray | None,
                    base: np.ndarray | None, threads: int | None) -> np.ndarray:
         """Depth (S, S) of the visible triangles (of `subset`) rendered over `base` (the nearer
         wins; None: an empty map), each triangle splatted over its rows' spans (atomic min:
         order-free). Depth-only maps are splatted rather than gathered per texel: a texel then
-        tests the triangles that cover it, not its tile's whole list."""
-        view, geo, b, kept = self.scene(a, t, face, s, subset, tiles=False)
-        entries = device_array(kept.astype(np.int32), int, self.device)
+        tests the triangles that cover it, not its tile's whole list; each triangle finds its own
+        box in the kernel, so the host neither bounds nor bins."""
+        proj, _q, tris, geo = self._face_geometry(a, t, face, s, subset)
+        view = make_view(proj, 1, None, TILE_SIZE)
+        view.near = face.near
         if base is None:
             depth = wp.full(self.size * self.size, wp.inf, dtype=float, device=self.device)
         else:
             depth = wp.array(base.ravel(), dtype=float, device=self.device)
-        launch_row_bands(splat_shadow_depth, len(kept), self.size,
-                         lambda y0, y1: [view, geo, b, entries, y0, y1, depth], self.device, threads)
+        launch_row_bands(splat_shadow_depth, len(tris), self.size,
+                         lambda y0, y1: [view, geo, y0, y1, depth], self.device, threads)
         return depth.numpy().reshape(self.size, self.size)
 
     def gather(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, threads: int | None):
         """Depth (S*S,), triangle (S*S,) and barycentrics (S*S, 2) warp arrays of the face (a warp
         key: each texel knows the surface point it sees)."""
-        view, geo, b, _kept = self.scene(a, t, face, s, None)
+        view, geo, b = self.scene(a, t, face, s, None)
         n = self.size * self.size
         depth = wp.empty(n, dtype=float, device=self.device)
         tri = wp.empty(n, dtype=int, device=self.device)
