@@ -17,7 +17,6 @@ import warp as wp
 
 from ..raster.binning import SAMPLE_MARGIN_PX, TILE_SIZE, entry_pixel_bounds
 from .frame import FrameContext
-from ..raster.device_data import empty_array
 
 #: tests switch this off to compare against rendering every pixel at every instant
 STATIC_TILES = True
@@ -122,7 +121,7 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
     n = ctx.settings.resolved_samples
     if ctx.shutter.instant and not ctx.scene.any_fractional:
         n = 1  # every instant is the same one (fractional opacity still samples presence per instant)
-    rgba = empty_array((ctx.num_pixels, 4), float, ctx.device, zeroed=True)
+    rgba = wp.zeros((ctx.num_pixels, 4), dtype=float, device=ctx.device)
     ctx.instants = n
     us = instants(n)
     plan = moving_tile_pixels(ctx, us) if (STATIC_TILES and n > 1) else None

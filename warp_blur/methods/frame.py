@@ -13,7 +13,7 @@ import warp as wp
 from ..raster.binning import SAMPLE_MARGIN_PX, TILE_SIZE, TileBins, bin_entries, entry_pixel_bounds, swept_bands
 from ..core.camera import Projection
 from ..raster.culling import hidden_back_faces
-from ..raster.device_data import TriangleTables, empty_array, make_bins, make_geometry, make_shading, make_view
+from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_shading, make_view
 from ..kernels.kernel_types import Geometry
 from ..core import progress
 from ..core.parallel import FINE_BANDS, launch_pixels
@@ -117,7 +117,7 @@ class FrameContext:
 
     def render_static(self, snapshot: Snapshot) -> np.ndarray:
         """(H*W, 4) sharp image of a frame where nothing moves (every method's exact answer)."""
-        rgba = empty_array((self.num_pixels, 4), float, self.device, zeroed=True)
+        rgba = wp.zeros((self.num_pixels, 4), dtype=float, device=self.device)
         self.sharp_pass(snapshot, 1.0, rgba)
         self.counters["static_frame"] = True
         return rgba.numpy()

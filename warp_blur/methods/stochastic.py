@@ -26,7 +26,6 @@ from ..kernels.shading import shade_entry_hit, shade_entry_hit_span
 from .analytic.coverage import DEGENERATE_TOL_F32, MAX_SPAN_PIECES, next_breakpoint, piece_covered, prism_edges
 from .analytic.intervals import nearest_static
 from .analytic.segments import prepare_motion
-from ..raster.device_data import empty_array
 
 SCRATCH_BYTES = 64 * 2**20
 
@@ -158,7 +157,7 @@ def render_stochastic(ctx: FrameContext) -> np.ndarray:
     n = s.resolved_samples
     dev = ctx.device
     plan, geo, (static_bins, moving_bins), sh, view = prepare_motion(ctx)
-    rgba = empty_array((ctx.num_pixels, 4), float, dev, zeroed=True)
+    rgba = wp.zeros((ctx.num_pixels, 4), dtype=float, device=dev)
     subs = ctx.sub_pixel_offsets()
     max_band = max(1, SCRATCH_BYTES // (12 * n))
     lights_static = 1 if plan.lights_static else 0

@@ -11,27 +11,6 @@ from ..kernels.kernel_types import Bins, Geometry, Shading, Textures, View
 from ..kernels.shadow_lookup import FACE_WIDTH
 
 
-#: CPU arrays at least this large are allocated by NumPy, which asks the kernel for huge pages
-#: there: the first write into a 48 MB array took 17 ms as a Warp allocation and 8 ms NumPy-backed
-#: (page faults), and a frame allocates ~100 MB of maps and intervals
-HUGE_PAGE_BYTES = 4 * 2**20
-
-
-def empty_array(shape, dtype, device, zeroed: bool = False) -> wp.array:
-    """wp.empty (wp.zeros when zeroed) of `shape`, backed by NumPy memory when on the CPU and at
-    least HUGE_PAGE_BYTES (the Warp array aliases it and keeps it alive)."""
-    shape = (shape,) if isinstance(shape, int) else tuple(shape)
-    dtype = {float: wp.float32, int: wp.int32}.get(dtype, dtype)
-    scalar = getattr(dtype, "_wp_scalar_type_", dtype)
-    lanes = tuple(getattr(dtype, "_shape_", ()))
-    np_dtype = np.dtype(wp.dtype_to_numpy(scalar))
-    nbytes = int(np.prod(shape + lanes, dtype=np.int64)) * np_dtype.itemsize
-    if not wp.get_device(device).is_cpu or nbytes < HUGE_PAGE_BYTES:
-        return (wp.zeros if zeroed else wp.empty)(shape, dtype=dtype, device=device)
-    host = (np.zeros if zeroed else np.empty)(shape + lanes, np_dtype)
-    return wp.array(host, dtype=dtype, device=device, copy=False)
-
-
 def device_array(a: np.ndarray, dtype, device: str, min_len: int = 1):
     """A Warp array of `a` (padded with zeros to min_len rows: kernels take no empty arrays)."""
     a = np.ascontiguousarray(a)
@@ -226,7 +205,7 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
         cached = shadows.device_arrays.get((device, instant_major))
         if cached is None:
             # on the CPU the maps are laid out straight into the device array (no second copy)
-            dev_maps = empty_array(slot_map_shape(shadows, instant_major), float, device)
+            dev_maps = wp.empty(slot_map_shape(shadows, instant_major), dtype=float, device=device)
             on_host = wp.get_device(device).is_cpu
             maps, faces, varying, slot_lights = face_slots(shadows, dev_maps.numpy() if on_host else None,
                                                            instant_major)

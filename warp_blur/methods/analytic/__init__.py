@@ -22,7 +22,6 @@ from .intervals import classify_samples, fill_intervals
 from .occlusion import CULL_ROW_BYTES_BUDGET, MAX_INSTANT_CULL_SLOTS
 from .resolve import resolve_bitmask, resolve_exact
 from .segments import prepare_motion
-from ...raster.device_data import empty_array
 
 BYTES_PER_INTERVAL = 8 + 8 + 4 + 4  # times, depths, entry, sort index
 MAX_EXACT_EVENTS = 1 << 16
@@ -94,7 +93,8 @@ class _IntervalPass:
         n_iv = max(int(spans_np[:, 1].max()) if len(spans_np) else 0, 1)
         self.peak_bytes = max(self.peak_bytes, n_iv * BYTES_PER_INTERVAL)
         self.chunks += 1
-        arrays = (empty_array(n_iv, wp.vec2, dev), empty_array(n_iv, wp.vec2, dev), empty_array(n_iv, int, dev))
+        arrays = (wp.empty(n_iv, dtype=wp.vec2, device=dev), wp.empty(n_iv, dtype=wp.vec2, device=dev),
+                  wp.empty(n_iv, dtype=int, device=dev))
         pixels = wp.array(pixels_np, dtype=int, device=dev)
         spans = wp.array(spans_np, dtype=wp.vec2i, device=dev)
         counts = wp.zeros(len(pixels_np), dtype=int, device=dev)
@@ -122,7 +122,7 @@ class _IntervalPass:
         spans = wp.array(spans_np.astype(np.int32), dtype=wp.vec2i, device=dev)
         with ctx.timed("resolve"):
             if bits > 0:
-                order = empty_array(iv_t.shape[0], int, dev)
+                order = wp.empty(iv_t.shape[0], dtype=int, device=dev)
                 launch_pixels(resolve_bitmask, len(pixels_np),
                               lambda first, n: [*shading, pixels, spans, iv_t, iv_z, iv_e, bits, self.weight,
                                                 first, first, order,
@@ -186,7 +186,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     geo.cutout_slots = bits if bits > 0 else EXACT_CUTOUT_SLOTS
     geo.clip_bits = bits
     num_px = ctx.num_pixels
-    rgba = empty_array((num_px, 4), float, dev, zeroed=True)
+    rgba = wp.zeros((num_px, 4), dtype=float, device=dev)
     fallbacks, truncated, shaded = BandCounter(dev), BandCounter(dev), BandCounter(dev)
     # int32 interval indices: chunks stay below 2**30 intervals
     budget = min(int(s.memory_budget_mb * 2**20 // BYTES_PER_INTERVAL), 2**30)
