@@ -252,11 +252,11 @@ def test_texels_that_never_change_take_one_lookup_for_a_time_span(scene_path, mo
     """A static receiver's interval averages the shadow over its whole span; where the light holds
     still and the texels read never change (most of the map), one lookup stands for the span.
     The image equals looking up every instant."""
-    from warp_blur.shadows import maps as shadow_maps
+    from warp_blur.shadows import layout as shadow_layout
     path = shadow_stage(scene_path(), occluder_samples=MOVING)
     steady = render(path, "analytic", shadows="direct")
     assert 0.0 < steady.stats["shadow_texels_varying"] < 0.3
-    monkeypatch.setattr(shadow_maps, "varying_texels", lambda maps, lights, times: np.ones(maps.shape, np.uint8))
+    monkeypatch.setattr(shadow_layout, "varying_texels", lambda maps, lights, times: np.ones(maps.shape, np.uint8))
     every = render(path, "analytic", shadows="direct")
     assert every.stats["shadow_texels_varying"] == 1.0
     assert np.abs(steady.rgba - every.rgba).max() < 1e-5

@@ -218,7 +218,7 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
         s.shadow_maps, s.shadow_varying, s.shadow_faces, slot_lights = cached
         info = np.zeros((len(shadows.lights), 4), np.int32)
         info[:, :3] = slot_lights
-        if shadows.varying is not None:
+        if shadows.times > 1 and not instant_major:   # (a sharp instant never looks up a span)
             info[:nl, 3] = (lt == lt[:1]).all(axis=(0, 2))[:nl]
         s.shadow_lights = wp.array(info, dtype=int, device=device)
         s.shadow_times, s.shadow_size = shadows.times, shadows.size
@@ -257,13 +257,13 @@ def face_slots(data, out: np.ndarray | None = None,
     """The kernels' layout of a frame's maps (a shadows.layout.ShadowData): (maps (slots, S, S, B)
     float32 with each face's B instants side by side, or (slots, B, S, S) with each instant's image
     whole when instant_major, written into `out` when given, faces (slots, FACE_WIDTH), varying
-    (slots, S, S) uint8 or None, lights (NL, 3) [first slot or -1, samples, faces]); slot
-    first + m F + f is sample m, face f."""
+    (slots, S, S) uint8 or None (one instant, or instant_major: a sharp instant reads no flags),
+    lights (NL, 3) [first slot or -1, samples, faces]); slot first + m F + f is sample m, face f."""
     b, s = data.times, data.size
     shape = slot_map_shape(data, instant_major)
     maps = out if out is not None else np.empty(shape, np.float32)
     faces = np.zeros((shape[0], data.faces.shape[1]), np.float32)
-    varying = np.zeros((shape[0], s, s), np.uint8) if data.varying is not None else None
+    varying = np.zeros((shape[0], s, s), np.uint8) if b > 1 and not instant_major else None
     lights = data.lights.copy()
     k = 0
     for j, (first, m, f) in enumerate(data.lights):
@@ -276,7 +276,7 @@ def face_slots(data, out: np.ndarray | None = None,
         else:
             maps[k:k + m * f].reshape(m, f, s, s, b)[...] = block.transpose(0, 2, 3, 4, 1)   # no temporary
         faces[k:k + m * f] = data.faces[first:first + n].reshape(m, b, f, -1)[:, 0].reshape(m * f, -1)
-        if varying is not None:
+        if varying is not None:   # flags for spans of time (a sharp instant reads none)
             varying[k:k + m * f] = data.varying[first:first + n].reshape(m, b, f, s, s)[:, 0].reshape(m * f, s, s)
         lights[j, 0] = k
         k += m * f

@@ -95,30 +95,52 @@ class KeyMesh:
 @dataclass
 class ShadowData:
     """Maps ready for shading: maps (N, S, S) float32, faces (N, FACE_WIDTH), lights (NL, 3) int32
-    [first map or -1, samples, faces], times B, and varying (N, S, S) uint8: 1 where a texel's
-    depth is not the same in all B maps of its light sample and face (a span of time over a
-    texel that never varies needs one lookup, not one per instant)."""
+    [first map or -1, samples, faces], times B, and the frame's counters (for the share of
+    varying texels, recorded when `varying` is first needed)."""
 
     maps: np.ndarray
     faces: np.ndarray
     lights: np.ndarray
     times: int
     size: int
-    varying: np.ndarray | None = None
-    device_arrays: dict = field(default_factory=dict)   # device -> uploaded (maps, varying, faces, slot lights)
+    counters: dict | None = None
+    device_arrays: dict = field(default_factory=dict)   # (device, layout) -> uploaded (maps, varying, faces, slot lights)
+    _varying: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def varying(self) -> np.ndarray | None:
+        """(N, S, S) uint8: 1 where a texel's depth is not the same in all B maps of its light
+        sample and face (a span of time over a texel that never varies needs one lookup, not one
+        per instant); None for one instant. Computed when first asked for: only shading over
+        spans of time (not a sharp instant's) reads it."""
+        if self.times <= 1:
+            return None
+        if self._varying is None:
+            self._varying = varying_texels(self.maps, self.lights, self.times)
+            if self.counters is not None:
+                self.counters["shadow_texels_varying"] = float(self._varying.mean()) if self._varying.size else 0.0
+        return self._varying
 
 
 def varying_texels(maps: np.ndarray, lights: np.ndarray, times: int) -> np.ndarray:
     """(N, S, S) uint8 flags of texels whose depth differs between the `times` maps of the same
     light sample and face (maps of light j, sample m, time b, face f at first + (m B + b) F + f)."""
     out = np.zeros(maps.shape, np.uint8)
+    changed = np.empty(maps.shape[1:], bool)
+    differs = np.empty(maps.shape[1:], bool)
     for first, samples, faces in lights:
         if first < 0:
             continue
-        n = samples * times * faces
-        block = maps[first:first + n].reshape(samples, times, faces, *maps.shape[1:])
-        var = (block != block[:, :1]).any(axis=1, keepdims=True)
-        out[first:first + n] = np.broadcast_to(var, block.shape).reshape(n, *maps.shape[1:])
+        for m in range(samples):
+            for f in range(faces):
+                # one map at a time: no temporaries the size of all of them (tens of MB)
+                index = [first + (m * times + b) * faces + f for b in range(times)]
+                changed[...] = False
+                for i in index[1:]:
+                    np.not_equal(maps[i], maps[index[0]], out=differs)
+                    changed |= differs
+                for i in index:
+                    out[i] = changed
     return out
 
 

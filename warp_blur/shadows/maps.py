@@ -41,7 +41,7 @@ from ..kernels.shadow_lookup import FACE_WIDTH
 from ..kernels.shadow_raster import warp_texels
 from .direct import STILL_PROBES, FaceRasterizer, still_triangles
 from .layout import (FAR, Face, KeyMesh, LightLayout, Sample, ShadowData, ShadowOptions, fit_faces, light_frame,
-                     light_sample_offsets, varying_texels)
+                     light_sample_offsets)
 
 #: cells whose key depths differ by more than this many cell widths are cut (depth discontinuity)
 JUMP_CELLS = 8.0
@@ -502,12 +502,8 @@ class ShadowMaps:
                         faces[idx, 18] = 1.0 if face.cube else 0.0
                         idx += 1
             self._render_direct(lay, jobs, maps)
-        varying = None
-        if len(times) > 1:
-            varying = varying_texels(maps, info, len(times))
-            self.counters["shadow_texels_varying"] = float(varying.mean()) if varying.size else 0.0
         self._add_time("shadows", time.perf_counter() - t_start)
-        return ShadowData(maps, faces, info, len(times), s, varying)
+        return ShadowData(maps, faces, info, len(times), s, self.counters)
 
 
 def lit_materials(material_table: np.ndarray, tri_material: np.ndarray) -> bool:
