@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import os
 from concurrent.futures import ThreadPoolExecutor
-from typing import Callable
+from typing import Callable, Iterable
 
 import warp as wp
 
@@ -48,6 +48,22 @@ def map_threads(fn: Callable, items: list, threads: int | None = None) -> list:
     if threads == 1 or len(items) <= 1:
         return [fn(x) for x in items]
     return list(_pool(threads).map(fn, items))
+
+
+def run_prepared(steps: Iterable[Callable[[], None]]) -> None:
+    """Call the callables `steps` yields, in order, while a helper thread advances the iterable
+    to the next one: the host-side preparation of a pass (NumPy, uploads) overlaps the previous
+    pass's kernels instead of leaving the cores idle between them. The iterable is only ever
+    advanced by the helper, one step at a time, so whatever state it keeps changes in order."""
+    iterator = iter(steps)
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="warp_blur_prepare") as helper:
+        pending = helper.submit(next, iterator, None)
+        while True:
+            step = pending.result()
+            if step is None:
+                return
+            pending = helper.submit(next, iterator, None)
+            step()
 
 
 def _band_size(total: int, threads: int, bands_per_thread: int) -> int:

@@ -26,7 +26,8 @@ def listen(listener: FrameProgress | None) -> None:
 
 def stage(name: str) -> None:
     if _listener is not None:
-        _listener.stage(name)
+        with _lock:
+            _listener.stage(name)
 
 
 def bands_started(count: int) -> None:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from ..core.parallel import run_prepared
 from ..raster.binning import SAMPLE_MARGIN_PX, TILE_SIZE, entry_pixel_bounds
 from .frame import FrameContext
 
@@ -130,27 +131,44 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
         record_bytes = (ctx.num_pixels - len(plan.pixels)) * ctx.settings.spatial_samples ** 2 * RECORD_BYTES
         if record_bytes > ctx.settings.memory_budget_mb * 2**20:
             plan = None
-    if plan is None:
-        for snap in _snapshots(ctx, us):
-            ctx.sharp_pass(snap, 1.0 / n, rgba)
-    else:
-        moving, steady = plan.pixels, plan.steady
-        still = np.ones(ctx.num_pixels, bool)
-        still[moving] = False
-        still_px = np.nonzero(still)[0]
-        hits = None
-        for i, snap in enumerate(_snapshots(ctx, us)):
-            if i == 0 and steady:   # still tiles look the same at every instant: once, at full weight
-                ctx.sharp_pass(snap, 1.0, rgba, still_px)
-            elif i == 0:            # still tiles see the same surfaces: find them once, shade per instant
-                hits = ctx.sharp_pass(snap, 1.0 / n, rgba, still_px, record=True)
-            elif hits is not None:
-                ctx.reshade_pass(snap, hits, 1.0 / n, rgba)
-            ctx.sharp_pass(snap, 1.0 / n, rgba, moving, triangles=plan.needed)
-        ctx.counters["accumulation_still_pixels"] = float(still.mean())
-        ctx.counters["accumulation_still_shading"] = "once" if steady else "per instant"
+    # each pass's host work (snapshot, binning, uploads, shadow maps) is done on a helper thread
+    # while the pass before it renders
+    run_prepared(_passes(ctx, us, plan, rgba))
+    if plan is not None:
+        ctx.counters["accumulation_still_pixels"] = 1.0 - len(plan.pixels) / ctx.num_pixels
+        ctx.counters["accumulation_still_shading"] = "once" if plan.steady else "per instant"
     ctx.counters["instants"] = n
     return rgba.numpy()
+
+
+def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None, rgba: wp.array):
+    """The frame's passes in order, each prepared when asked for (frame.prepare_sharp_pass): with
+    a plan, still tiles once (steady) or found once and reshaded per instant, and the moving
+    tiles at every instant; without one, every pixel at every instant."""
+    n = len(us)
+    if plan is None:
+        for snap in _snapshots(ctx, us):
+            run, _ = ctx.prepare_sharp_pass(snap, 1.0 / n, rgba)
+            if run is not None:
+                yield run
+        return
+    still = np.ones(ctx.num_pixels, bool)
+    still[plan.pixels] = False
+    still_px = np.nonzero(still)[0]
+    hits = None
+    for i, snap in enumerate(_snapshots(ctx, us)):
+        run = None
+        if i == 0 and plan.steady:   # still tiles look the same at every instant: once, at full weight
+            run, _ = ctx.prepare_sharp_pass(snap, 1.0, rgba, still_px)
+        elif i == 0:                 # still tiles see the same surfaces: find them once, shade per instant
+            run, hits = ctx.prepare_sharp_pass(snap, 1.0 / n, rgba, still_px, record=True)
+        elif hits is not None:
+            run = ctx.prepare_reshade_pass(snap, hits, 1.0 / n, rgba)
+        if run is not None:
+            yield run
+        run, _ = ctx.prepare_sharp_pass(snap, 1.0 / n, rgba, plan.pixels, triangles=plan.needed)
+        if run is not None:
+            yield run
 
 
 def _snapshots(ctx: FrameContext, us: np.ndarray):

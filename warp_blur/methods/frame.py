@@ -4,6 +4,7 @@ sharp passes (shading an instant; Z and motion AOVs at the shutter centre)."""
 from __future__ import annotations
 
 import time
+from typing import Callable
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
@@ -290,8 +291,19 @@ class FrameContext:
         """rgba += weight × the sharp image of one instant (only at `pixels`, flat indices, if
         given, from only `triangles`, a (T,) mask, when the caller knows the others cannot show
         there). With record, returns each listed pixel's hits for reshade_pass."""
+        run, hits = self.prepare_sharp_pass(snapshot, weight, rgba, pixels, record, triangles, cull)
+        if run is not None:
+            run()
+        return hits
+
+    def prepare_sharp_pass(self, snapshot: Snapshot, weight: float, rgba: wp.array, pixels: np.ndarray | None = None,
+                           record: bool = False, triangles: np.ndarray | None = None,
+                           cull: bool = True) -> "tuple[Callable[[], None] | None, RecordedHits | None]":
+        """sharp_pass in two steps: everything up to the launch now, and (run, hits): run()
+        launches it (None: nothing to render); with record, hits (RecordedHits) hold the listed
+        pixels' hits once run() has returned."""
         if pixels is not None and len(pixels) == 0:
-            return None
+            return None, None
         sh = self.shading([snapshot])
         geo, bins = self.static_geometry([snapshot], 0, triangles, self.receiver_velocities(snapshot), cull)
         view, b = self.view(bins), make_bins(bins, self.device)
@@ -304,16 +316,19 @@ class FrameContext:
         rows = count if record else 1
         rec_e = wp.zeros((rows, subs if record else 1), dtype=int, device=dev)
         rec_hit = wp.zeros((rows, subs if record else 1), dtype=wp.vec4, device=dev)
-        with self.timed("render"):
-            launch_pixels(render_sharp, count,
-                          lambda first, _n: [view, geo, sh, b, u, weight, listed, 0 if pixels is None else 1, first,
-                                             1 if record else 0, rgba, rec_e, rec_hit], dev, self.settings.threads,
-                          bands_per_thread=FINE_BANDS)
-        return RecordedHits(view, listed, rec_e, rec_hit) if record else None
 
-    def reshade_pass(self, snapshot: Snapshot, hits: "RecordedHits", weight: float, rgba: wp.array) -> None:
-        """rgba += weight × the sharp image of one instant at the recorded pixels, whose
-        visibility does not change: their recorded hits are shaded with this instant's lights
+        def run() -> None:
+            with self.timed("render"):
+                launch_pixels(render_sharp, count,
+                              lambda first, _n: [view, geo, sh, b, u, weight, listed, 0 if pixels is None else 1,
+                                                 first, 1 if record else 0, rgba, rec_e, rec_hit], dev,
+                              self.settings.threads, bands_per_thread=FINE_BANDS)
+        return run, (RecordedHits(view, listed, rec_e, rec_hit) if record else None)
+
+    def prepare_reshade_pass(self, snapshot: Snapshot, hits: "RecordedHits", weight: float,
+                             rgba: wp.array) -> Callable[[], None]:
+        """A pass that, run, adds weight × the sharp image of one instant at the recorded pixels,
+        whose visibility does not change: their recorded hits shaded with this instant's lights
         and shadows."""
         tris = np.arange(self.scene.num_triangles, dtype=np.int32)
         k = np.zeros(len(tris), np.int32)
@@ -322,11 +337,14 @@ class FrameContext:
         geo = make_geometry(self.tables, snapshot.positions[None], normals, tris, k, k,
                             self.receiver_velocities(snapshot))   # entry = triangle
         u = self.snapshot_fraction(snapshot)
-        with self.timed("render"):
-            launch_pixels(shade_recorded, hits.pixels.shape[0],
-                          lambda first, _n: [hits.view, geo, sh, u, weight, hits.pixels, first, hits.entries,
-                                             hits.hits, rgba], self.device, self.settings.threads,
-                          bands_per_thread=FINE_BANDS)
+
+        def run() -> None:
+            with self.timed("render"):
+                launch_pixels(shade_recorded, hits.pixels.shape[0],
+                              lambda first, _n: [hits.view, geo, sh, u, weight, hits.pixels, first, hits.entries,
+                                                 hits.hits, rgba], self.device, self.settings.threads,
+                              bands_per_thread=FINE_BANDS)
+        return run
 
     def depth_motion(self, snapshots: list[Snapshot] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Z (H, W) and motion (H, W, 2) AOVs of the surface seen at the shutter centre."""
