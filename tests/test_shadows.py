@@ -263,6 +263,16 @@ def test_texels_that_never_change_take_one_lookup_for_a_time_span(scene_path, mo
     assert rmse(steady.rgba, render(path, "analytic", shadows="off").rgba) > 0.01   # there is a shadow
 
 
+def test_sharp_instants_build_no_varying_flags(scene_path):
+    """The flags serve shading over spans of time; accumulation's instants share maps at a few
+    instants (more instants than --shadow-times) and read them as sharp instants, so the frame
+    never builds the flags (they cost tens of ms of serial NumPy)."""
+    path = shadow_stage(scene_path(), occluder_samples=MOVING)
+    shared = render(path, "accumulation", samples=16, shadow_times=4)   # auto: maps shared at 4 instants
+    assert shared.stats["shadow_maps_rendered"] > 0 and "shadow_texels_varying" not in shared.stats
+    assert "shadow_texels_varying" in render(path, "stochastic", shadows="direct").stats
+
+
 def test_moving_receiver_is_not_shadowed_by_itself_at_other_instants(scene_path):
     """A lit quad rushing towards the camera, the only geometry, under a sun from the camera side:
     nothing can shadow it. Shadow maps at a few instants of the shutter hold the quad where it is
