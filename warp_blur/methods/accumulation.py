@@ -11,6 +11,7 @@ instant. The result is the same average (tested against rendering every pixel at
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable, Iterator
 
 import numpy as np
 import warp as wp
@@ -141,7 +142,8 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
     return rgba.numpy()
 
 
-def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None, rgba: wp.array):
+def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None,
+            rgba: wp.array) -> Iterator[Callable[[], None]]:
     """The frame's passes in order, each prepared when asked for (frame.prepare_sharp_pass): with
     a plan, still tiles once (steady) or found once and reshaded per instant, and the moving
     tiles at every instant; without one, every pixel at every instant."""
