@@ -4,9 +4,9 @@ sharp passes (shading an instant; Z and motion AOVs at the shutter centre)."""
 from __future__ import annotations
 
 import time
-from typing import Callable
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 import warp as wp
@@ -290,7 +290,7 @@ class FrameContext:
                    cull: bool = True) -> "RecordedHits | None":
         """rgba += weight × the sharp image of one instant (only at `pixels`, flat indices, if
         given, from only `triangles`, a (T,) mask, when the caller knows the others cannot show
-        there). With record, returns each listed pixel's hits for reshade_pass."""
+        there). With record, returns each listed pixel's hits for prepare_reshade_pass."""
         run, hits = self.prepare_sharp_pass(snapshot, weight, rgba, pixels, record, triangles, cull)
         if run is not None:
             run()

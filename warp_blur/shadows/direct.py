@@ -12,7 +12,7 @@ import warp as wp
 from ..core.parallel import launch_pixels, launch_row_bands
 from ..kernels.shadow_raster import render_shadow_texels, splat_shadow_depth
 from ..raster.binning import TILE_SIZE, bin_entries, entry_pixel_bounds
-from ..raster.device_data import TriangleTables, device_array, make_bins, make_geometry, make_view
+from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_view
 from .layout import Face, Sample, light_frame
 
 #: shutter instants at which a triangle must hold still to render once into a static base map
@@ -54,8 +54,8 @@ class FaceRasterizer:
         self.tables, self.tri_vertices, self.size, self.device = tables, tri_vertices, size, device
 
     def _face_geometry(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, subset: np.ndarray | None):
-        """(projection, face-space positions (V, 3), visible triangles (of `subset`, a (T,) mask,
-        when given) (N,), their geometry, view) of the face at sample s."""
+        """(projection, face-space positions (V, 3), visible triangles (N,) (of `subset`, a (T,)
+        mask, when given), their geometry with one static entry each) of the face at sample s."""
         q = s.positions @ a.T + t
         proj = face.projection(self.size)
         visible = s.tri_visible if len(s.tri_visible) else np.zeros(len(self.tri_vertices), bool)
