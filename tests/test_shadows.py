@@ -256,7 +256,7 @@ def test_texels_that_never_change_take_one_lookup_for_a_time_span(scene_path, mo
     path = shadow_stage(scene_path(), occluder_samples=MOVING)
     steady = render(path, "analytic", shadows="direct")
     assert 0.0 < steady.stats["shadow_texels_varying"] < 0.3
-    monkeypatch.setattr(shadow_layout, "varying_texels", lambda maps, lights, times: np.ones(maps.shape, np.uint8))
+    monkeypatch.setattr(shadow_layout, "face_varying", lambda stack: np.ones(stack.shape[1:], bool))
     every = render(path, "analytic", shadows="direct")
     assert every.stats["shadow_texels_varying"] == 1.0
     assert np.abs(steady.rgba - every.rgba).max() < 1e-5

@@ -203,6 +203,18 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
     else:
         # maps shared by many instants (accumulation) are uploaded once, not once per instant
         cached = shadows.device_arrays.get((device, instant_major))
+        laid = shadows.texel_major if not instant_major else None
+        if cached is None and laid is not None:
+            # laid out while the maps rendered (shadows/texel_major.py): the CPU reads it as it is
+            _maps, faces, _varying, slot_lights = face_slots(shadows, None, instant_major, laid_out=True)
+            on_host = wp.get_device(device).is_cpu
+            dev_maps = laid.array if on_host else wp.array(laid.slots, dtype=float, device=device)
+            varying = laid.varying
+            if shadows.counters is not None:
+                shadows.counters["shadow_texels_varying"] = float(varying.mean()) if varying.size else 0.0
+            cached = (dev_maps, wp.array(varying, dtype=wp.uint8, device=device),
+                      wp.array(faces, dtype=float, device=device), slot_lights)
+            shadows.device_arrays[(device, instant_major)] = cached
         if cached is None:
             # on the CPU the maps are laid out straight into the device array (no second copy)
             dev_maps = wp.empty(slot_map_shape(shadows, instant_major), dtype=float, device=device)
@@ -252,18 +264,19 @@ def shadow_map_array(maps: wp.array, instant_major: bool) -> wp.array:
     return view
 
 
-def face_slots(data, out: np.ndarray | None = None,
-               instant_major: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+def face_slots(data, out: np.ndarray | None = None, instant_major: bool = False,
+               laid_out: bool = False) -> tuple[np.ndarray | None, np.ndarray, np.ndarray | None, np.ndarray]:
     """The kernels' layout of a frame's maps (a shadows.layout.ShadowData): (maps (slots, S, S, B)
     float32 with each face's B instants side by side, or (slots, B, S, S) with each instant's image
     whole when instant_major, written into `out` when given, faces (slots, FACE_WIDTH), varying
     (slots, S, S) uint8 or None (one instant, or instant_major: a sharp instant reads no flags),
-    lights (NL, 3) [first slot or -1, samples, faces]); slot first + m F + f is sample m, face f."""
+    lights (NL, 3) [first slot or -1, samples, faces]); slot first + m F + f is sample m, face f.
+    laid_out: the maps and flags are laid out already (texel_major.py): faces and lights only."""
     b, s = data.times, data.size
     shape = slot_map_shape(data, instant_major)
-    maps = out if out is not None else np.empty(shape, np.float32)
+    maps = None if laid_out else out if out is not None else np.empty(shape, np.float32)
     faces = np.zeros((shape[0], data.faces.shape[1]), np.float32)
-    varying = np.zeros((shape[0], s, s), np.uint8) if b > 1 and not instant_major else None
+    varying = np.zeros((shape[0], s, s), np.uint8) if b > 1 and not instant_major and not laid_out else None
     lights = data.lights.copy()
     k = 0
     for j, (first, m, f) in enumerate(data.lights):
@@ -271,7 +284,9 @@ def face_slots(data, out: np.ndarray | None = None,
             continue
         n = m * b * f
         block = data.maps[first:first + n].reshape(m, b, f, s, s)
-        if instant_major:
+        if laid_out:   # texel_major.py put slot first / B + m F + f there
+            assert k * b == first, "laid-out slots out of order"
+        elif instant_major:
             maps[k:k + m * f].reshape(m, f, b, s, s)[...] = block.transpose(0, 2, 1, 3, 4)
         else:
             maps[k:k + m * f].reshape(m, f, s, s, b)[...] = block.transpose(0, 2, 3, 4, 1)   # no temporary

@@ -105,6 +105,8 @@ class ShadowData:
     size: int
     counters: dict | None = None
     device_arrays: dict = field(default_factory=dict)   # (device, layout) -> uploaded (maps, varying, faces, slot lights)
+    #: the maps already laid out for spans of time (a texel_major.TexelMajorLayout), when asked for
+    texel_major: object | None = None
     _varying: np.ndarray | None = field(default=None, repr=False)
 
     @property
@@ -126,22 +128,25 @@ def varying_texels(maps: np.ndarray, lights: np.ndarray, times: int) -> np.ndarr
     """(N, S, S) uint8 flags of texels whose depth differs between the `times` maps of the same
     light sample and face (maps of light j, sample m, time b, face f at first + (m B + b) F + f)."""
     out = np.zeros(maps.shape, np.uint8)
-    changed = np.empty(maps.shape[1:], bool)
-    differs = np.empty(maps.shape[1:], bool)
     for first, samples, faces in lights:
         if first < 0:
             continue
         for m in range(samples):
             for f in range(faces):
-                # one map at a time: no temporaries the size of all of them (tens of MB)
-                index = [first + (m * times + b) * faces + f for b in range(times)]
-                changed[...] = False
-                for i in index[1:]:
-                    np.not_equal(maps[i], maps[index[0]], out=differs)
-                    changed |= differs
-                for i in index:
-                    out[i] = changed
+                start = first + m * times * faces + f
+                out[start:start + times * faces:faces] = face_varying(maps[start:start + times * faces:faces])
     return out
+
+
+def face_varying(stack: np.ndarray) -> np.ndarray:
+    """(S, S) bool: texels whose depth differs between the B maps stack (B, S, S) of one light
+    sample and face (compared one map at a time: no temporaries the size of all of them)."""
+    changed = np.zeros(stack.shape[1:], bool)
+    differs = np.empty(stack.shape[1:], bool)
+    for i in range(1, len(stack)):
+        np.not_equal(stack[i], stack[0], out=differs)
+        changed |= differs
+    return changed
 
 
 def light_frame(row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

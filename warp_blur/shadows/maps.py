@@ -42,6 +42,7 @@ from ..kernels.shadow_raster import warp_texels
 from .direct import STILL_PROBES, FaceRasterizer, still_triangles
 from .layout import (FAR, Face, KeyMesh, LightLayout, Sample, ShadowData, ShadowOptions, fit_faces, light_frame,
                      light_sample_offsets)
+from .texel_major import TexelMajorLayout
 
 #: cells whose key depths differ by more than this many cell widths are cut (depth discontinuity)
 JUMP_CELLS = 8.0
@@ -218,11 +219,13 @@ class ShadowMaps:
         self._count("shadow_maps_rendered", 1)
         return depth
 
-    def _render_direct(self, lay: LightLayout, jobs: list[tuple[int, int, int, float]], maps: np.ndarray) -> None:
+    def _render_direct(self, lay: LightLayout, jobs: list[tuple[int, int, int, float]], maps: np.ndarray,
+                       laid: TexelMajorLayout | None = None) -> None:
         """Render light lay's direct maps `jobs` ((slot, face, light sample, time)) into maps, one
         map per pool thread as a single-core launch: a map's host-side setup overlaps the other
         threads' rasterizing. Still bases (one per face and sample) are rendered first, so no
-        two threads render the same one."""
+        two threads render the same one. With `laid`, a face's instants render one after another
+        and the thread that completes a face lays it out while the others render on."""
         if not jobs:
             return
         t0 = time.perf_counter()
@@ -239,6 +242,10 @@ class ShadowMaps:
         def one(job: tuple[int, int, int, float]) -> None:
             slot, fi, m, u = job
             maps[slot] = self._direct_depth(lay, fi, m, u, single)
+            if laid is not None:
+                laid.rendered(slot)
+        if laid is not None:
+            jobs = sorted(jobs, key=lambda job: (job[2], job[1], job[3]))   # face by face
         map_threads(one, jobs, threads)
         self._add_time("shadow_render", time.perf_counter() - t0)
 
@@ -419,16 +426,18 @@ class ShadowMaps:
         return out.numpy().reshape(s, s)
 
     # ------------------------------------------------------------------------------ assembly
-    def data(self, times: list[float]) -> ShadowData | None:
+    def data(self, times: list[float], texel_major: bool = False) -> ShadowData | None:
         """Maps for the given shutter instants (B = len(times)); None without shadowing lights.
-        Static shadows are built once (at the shutter centre) and serve every instant."""
+        Static shadows are built once (at the shutter centre) and serve every instant. texel_major:
+        also lay the maps out, while they render, as spans of time read them (TexelMajorLayout)."""
         if not self.active:
             return None
         if self.static:
             if self._static_data is None:
                 self._static_data = self._build([0.5], direct=True, frame_instants=1)
             return self._static_data
-        return self._build(times, direct=self.options.mode == "direct", frame_instants=len(times))
+        return self._build(times, direct=self.options.mode == "direct", frame_instants=len(times),
+                           texel_major=texel_major)
 
     def data_for_instant(self, u: float, num_instants: int, requested_times: int) -> ShadowData | None:
         """Maps for a sharp instant u of a frame shading `num_instants` instants. Direct mode (the
@@ -451,18 +460,23 @@ class ShadowMaps:
         warped = keys * KEY_MAP_COST * map_seconds + remaining_maps * self.size ** 2 * self._warp_seconds_per_texel
         return remaining_maps * map_seconds > warped
 
-    def _build(self, times: list[float], direct: bool, frame_instants: int) -> ShadowData:
+    def _build(self, times: list[float], direct: bool, frame_instants: int,
+               texel_major: bool = False) -> ShadowData:
         """Maps at `times` (B shutter instants); frame_instants: how many instants the frame
-        builds maps for in all (auto mode weighs warping against rendering over all of them)."""
+        builds maps for in all (auto mode weighs warping against rendering over all of them);
+        texel_major (B > 1): each face laid out for spans of time as soon as it is complete."""
         t_start = time.perf_counter()
         s = self.size
         total = sum(len(lay.offsets) * len(lay.faces) for lay in self.layouts) * len(times)
         maps = np.empty((total, s, s), np.float32)
         faces = np.zeros((total, FACE_WIDTH), np.float32)
         info = np.full((max(self.num_lights, 1), 3), -1, np.int32)
+        laid = TexelMajorLayout(maps, len(times), self.device) if texel_major and len(times) > 1 else None
         idx = 0
         for lay in self.layouts:
             info[lay.row] = (idx, len(lay.offsets), len(lay.faces))
+            if laid is not None:
+                laid.add_light(idx, len(lay.offsets), len(lay.faces))
             if direct or lay.static:
                 lay.warp = False
             elif self.options.mode == "warped":
@@ -494,6 +508,8 @@ class ShadowMaps:
                         else:
                             maps[idx] = self._warp_face(lay, fi, m, u, keys)
                             self._count("shadow_maps_warped", 1)
+                        if laid is not None and not (jobs and jobs[-1][0] == idx):   # rendered here
+                            laid.rendered(idx)
                         faces[idx, 0:9] = face.rotation.ravel()
                         faces[idx, 9:12] = lay.offsets[m]
                         faces[idx, 12:16] = face.window
@@ -501,9 +517,11 @@ class ShadowMaps:
                         faces[idx, 17] = face.near if not face.ortho else -FAR
                         faces[idx, 18] = 1.0 if face.cube else 0.0
                         idx += 1
-            self._render_direct(lay, jobs, maps)
+            self._render_direct(lay, jobs, maps, laid)
+        if laid is not None:
+            laid.finish()
         self._add_time("shadows", time.perf_counter() - t_start)
-        return ShadowData(maps, faces, info, len(times), s, self.counters)
+        return ShadowData(maps, faces, info, len(times), s, self.counters, texel_major=laid)
 
 
 def lit_materials(material_table: np.ndarray, tri_material: np.ndarray) -> bool:

@@ -292,7 +292,7 @@ def prepare_motion(ctx):
     if maps is not None:
         num_times = maps.times_for(s.shadow_times)
         with ctx.timed("shadow_total"):
-            shadows = maps.data([(b + 0.5) / num_times for b in range(num_times)])
+            shadows = maps.data([(b + 0.5) / num_times for b in range(num_times)], texel_major=True)
     sh = make_shading(ctx.scene.material_table, plan.lights, ctx.scene.dome, ctx.device, shadows,
                       ctx.shadow_options(), ctx.scene.materials.textures, ctx.dome_frame())
     return plan, geo, bins, sh, ctx.view(tile_bins[0])
