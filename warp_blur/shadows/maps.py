@@ -219,34 +219,38 @@ class ShadowMaps:
         self._count("shadow_maps_rendered", 1)
         return depth
 
-    def _render_direct(self, lay: LightLayout, jobs: list[tuple[int, int, int, float]], maps: np.ndarray,
+    def _render_direct(self, work: list[tuple[LightLayout, list[tuple[int, int, int, float]]]], maps: np.ndarray,
                        laid: TexelMajorLayout | None = None) -> None:
-        """Render light lay's direct maps `jobs` ((slot, face, light sample, time)) into maps, one
-        map per pool thread as a single-core launch: a map's host-side setup overlaps the other
-        threads' rasterizing. Still bases (one per face and sample) are rendered first, so no
-        two threads render the same one. With `laid`, a face's instants render one after another
-        and the thread that completes a face lays it out while the others render on."""
-        if not jobs:
+        """Render the lights' direct maps (per light, jobs (slot, face, light sample, time)) into
+        maps, one map per pool thread as a single-core launch: a map's host-side setup overlaps the
+        other threads' rasterizing, and no light waits for the last map of the one before. Still
+        bases (one per light, face and sample) are rendered first, so no two threads render the
+        same one. With `laid`, a face's instants render one after another and the thread that
+        completes a face lays it out while the others render on."""
+        work = [(lay, jobs) for lay, jobs in work if jobs]
+        if not work:
             return
         t0 = time.perf_counter()
         threads = self.threads or default_threads()
-        single = 1 if threads > 1 and len(jobs) > 1 else None
-        still = None if lay.static else self._still_triangles(lay)
-        if still is not None and still.any():
-            first: dict[tuple[int, int], float] = {}
-            for _slot, fi, m, u in jobs:
-                first.setdefault((fi, m), u)
-            map_threads(lambda job: self._base(lay, job[0][0], job[0][1], self.sample(job[1]), still, single),
-                        list(first.items()), threads)
+        single = 1 if threads > 1 and sum(len(jobs) for _lay, jobs in work) > 1 else None
+        bases = []
+        for lay, jobs in work:
+            still = None if lay.static else self._still_triangles(lay)
+            if still is not None and still.any():
+                first: dict[tuple[int, int], float] = {}
+                for _slot, fi, m, u in jobs:
+                    first.setdefault((fi, m), u)
+                bases += [(lay, fi, m, u, still) for (fi, m), u in first.items()]
+        map_threads(lambda b: self._base(b[0], b[1], b[2], self.sample(b[3]), b[4], single), bases, threads)
 
-        def one(job: tuple[int, int, int, float]) -> None:
-            slot, fi, m, u = job
+        def one(item: tuple[LightLayout, tuple[int, int, int, float]]) -> None:
+            lay, (slot, fi, m, u) = item
             maps[slot] = self._direct_depth(lay, fi, m, u, single)
             if laid is not None:
                 laid.rendered(slot)
-        if laid is not None:
-            jobs = sorted(jobs, key=lambda job: (job[2], job[1], job[3]))   # face by face
-        map_threads(one, jobs, threads)
+        order = [(lay, job) for lay, jobs in work
+                 for job in (sorted(jobs, key=lambda job: (job[2], job[1], job[3])) if laid is not None else jobs)]
+        map_threads(one, order, threads)   # with `laid`, face by face
         self._add_time("shadow_render", time.perf_counter() - t0)
 
     def _key_times(self, lay: LightLayout) -> list[float]:
@@ -473,6 +477,7 @@ class ShadowMaps:
         info = np.full((max(self.num_lights, 1), 3), -1, np.int32)
         laid = TexelMajorLayout(maps, len(times), self.device) if texel_major and len(times) > 1 else None
         idx = 0
+        direct_jobs = []   # per light: its maps to render in parallel, all lights' at once below
         for lay in self.layouts:
             info[lay.row] = (idx, len(lay.offsets), len(lay.faces))
             if laid is not None:
@@ -517,7 +522,8 @@ class ShadowMaps:
                         faces[idx, 17] = face.near if not face.ortho else -FAR
                         faces[idx, 18] = 1.0 if face.cube else 0.0
                         idx += 1
-            self._render_direct(lay, jobs, maps, laid)
+            direct_jobs.append((lay, jobs))
+        self._render_direct(direct_jobs, maps, laid)
         if laid is not None:
             laid.finish()
         self._add_time("shadows", time.perf_counter() - t_start)
