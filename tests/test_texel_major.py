@@ -36,7 +36,7 @@ def test_faces_laid_out_in_any_order_equal_the_whole_layout(seed):
     maps, lights = frame_maps(seed)
     expected, _faces, expected_varying, _lights = face_slots(
         ShadowData(maps, np.zeros((len(maps), 19), np.float32), lights, B, S))
-    laid = TexelMajorLayout(maps, B, "cpu")
+    laid = TexelMajorLayout(maps, B)
     for first, m, f in lights:
         laid.add_light(int(first), int(m), int(f))
     # every instant of the second light's last face (slot 4), and a random third of the rest,
@@ -47,7 +47,7 @@ def test_faces_laid_out_in_any_order_equal_the_whole_layout(seed):
     for idx in rng.permutation(last_face + others):
         laid.rendered(int(idx))
     # a face whose B instants were all reported is laid out already, before finish()
-    done = [slot for slot in range(expected.shape[0]) if laid._laid[slot]]
+    done = [slot for slot in range(expected.shape[0]) if laid.laid_out(slot)]
     assert 4 in done
     for slot in done:
         np.testing.assert_array_equal(laid.slots[slot], expected[slot])
@@ -60,7 +60,7 @@ def test_faces_laid_out_in_any_order_equal_the_whole_layout(seed):
 
 def test_a_map_of_no_registered_light_is_an_error():
     maps, lights = frame_maps(0)
-    laid = TexelMajorLayout(maps, B, "cpu")
+    laid = TexelMajorLayout(maps, B)
     laid.add_light(0, 2, 1)
     with pytest.raises(IndexError):
         laid.rendered(len(maps) - 1)

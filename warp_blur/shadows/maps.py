@@ -475,7 +475,7 @@ class ShadowMaps:
         maps = np.empty((total, s, s), np.float32)
         faces = np.zeros((total, FACE_WIDTH), np.float32)
         info = np.full((max(self.num_lights, 1), 3), -1, np.int32)
-        laid = TexelMajorLayout(maps, len(times), self.device) if texel_major and len(times) > 1 else None
+        laid = TexelMajorLayout(maps, len(times)) if texel_major and len(times) > 1 else None
         idx = 0
         direct_jobs = []   # per light: its maps to render in parallel, all lights' at once below
         for lay in self.layouts:

@@ -23,11 +23,12 @@ class TexelMajorLayout:
     first / B + m F + f, and flags (slots, S, S) uint8: 1 where a texel's depth is not the same in
     all B instants (layout.face_varying)."""
 
-    def __init__(self, maps: np.ndarray, times: int, device: str) -> None:
-        self.maps, self.times, self.device = maps, times, device
+    def __init__(self, maps: np.ndarray, times: int) -> None:
+        self.maps, self.times = maps, times
         s = maps.shape[1]
         slots = maps.shape[0] // times
-        # on the CPU the kernels read this array itself (no upload, no second copy)
+        # on the CPU the kernels read this array itself (no upload, no second copy); another
+        # device gets a copy (device_data.make_shading)
         self.array = wp.empty((max(slots, 1), s, s, times), dtype=float, device="cpu")
         self.slots = self.array.numpy()
         self.varying = np.zeros((max(slots, 1), s, s), np.uint8)
@@ -39,6 +40,10 @@ class TexelMajorLayout:
     def add_light(self, first: int, samples: int, faces: int) -> None:
         """Register a light whose M samples × B instants × F faces of maps start at `first`."""
         self._lights.append((first, samples, faces))
+
+    def laid_out(self, slot: int) -> bool:
+        """True once slot's face is laid out (with its flags)."""
+        return bool(self._laid[slot])
 
     def _slot_of(self, idx: int) -> tuple[int, int, int]:
         """(slot, first map of its light, faces F) of map idx."""
