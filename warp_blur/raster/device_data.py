@@ -206,14 +206,13 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
         laid = shadows.texel_major if not instant_major else None
         if cached is None and laid is not None:
             # laid out while the maps rendered (shadows/texel_major.py): the CPU reads it as it is
-            _maps, faces, _varying, slot_lights = face_slots(shadows, None, instant_major, laid_out=True)
+            faces, slot_lights = slot_faces(shadows)
             on_host = wp.get_device(device).is_cpu
             dev_maps = laid.array if on_host else wp.array(laid.slots, dtype=float, device=device)
-            varying = laid.varying
+            dev_varying = laid.varying_array if on_host else wp.array(laid.varying, dtype=wp.uint8, device=device)
             if shadows.counters is not None:
-                shadows.counters["shadow_texels_varying"] = float(varying.mean()) if varying.size else 0.0
-            cached = (dev_maps, wp.array(varying, dtype=wp.uint8, device=device),
-                      wp.array(faces, dtype=float, device=device), slot_lights)
+                shadows.counters["shadow_texels_varying"] = float(laid.varying.mean()) if laid.varying.size else 0.0
+            cached = (dev_maps, dev_varying, wp.array(faces, dtype=float, device=device), slot_lights)
             shadows.device_arrays[(device, instant_major)] = cached
         if cached is None:
             # on the CPU the maps are laid out straight into the device array (no second copy)
@@ -264,37 +263,46 @@ def shadow_map_array(maps: wp.array, instant_major: bool) -> wp.array:
     return view
 
 
-def face_slots(data, out: np.ndarray | None = None, instant_major: bool = False,
-               laid_out: bool = False) -> tuple[np.ndarray | None, np.ndarray, np.ndarray | None, np.ndarray]:
-    """The kernels' layout of a frame's maps (a shadows.layout.ShadowData): (maps (slots, S, S, B)
-    float32 with each face's B instants side by side, or (slots, B, S, S) with each instant's image
-    whole when instant_major, written into `out` when given, faces (slots, FACE_WIDTH), varying
-    (slots, S, S) uint8 or None (one instant, or instant_major: a sharp instant reads no flags),
-    lights (NL, 3) [first slot or -1, samples, faces]); slot first + m F + f is sample m, face f.
-    laid_out: the maps and flags are laid out already (texel_major.py): faces and lights only."""
-    b, s = data.times, data.size
-    shape = slot_map_shape(data, instant_major)
-    maps = None if laid_out else out if out is not None else np.empty(shape, np.float32)
-    faces = np.zeros((shape[0], data.faces.shape[1]), np.float32)
-    varying = np.zeros((shape[0], s, s), np.uint8) if b > 1 and not instant_major and not laid_out else None
+def slot_faces(data) -> tuple[np.ndarray, np.ndarray]:
+    """(faces (slots, FACE_WIDTH), lights (NL, 3) [first slot or -1, samples, faces]) of a frame's
+    maps (a shadows.layout.ShadowData): slot first + m F + f is light sample m, face f (the
+    face rows of one slot are the same at every instant)."""
+    b = data.times
+    faces = np.zeros((slot_map_shape(data)[0], data.faces.shape[1]), np.float32)
     lights = data.lights.copy()
     k = 0
     for j, (first, m, f) in enumerate(data.lights):
         if first < 0:
             continue
+        faces[k:k + m * f] = data.faces[first:first + m * b * f].reshape(m, b, f, -1)[:, 0].reshape(m * f, -1)
+        lights[j, 0] = k
+        k += m * f
+    return faces, lights
+
+
+def face_slots(data, out: np.ndarray | None = None,
+               instant_major: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+    """The kernels' layout of a frame's maps (a shadows.layout.ShadowData): (maps (slots, S, S, B)
+    float32 with each face's B instants side by side, or (slots, B, S, S) with each instant's image
+    whole when instant_major, written into `out` when given, faces and lights (slot_faces),
+    varying (slots, S, S) uint8 or None (one instant, or instant_major: a sharp instant reads no
+    flags))."""
+    b, s = data.times, data.size
+    shape = slot_map_shape(data, instant_major)
+    maps = out if out is not None else np.empty(shape, np.float32)
+    faces, lights = slot_faces(data)
+    varying = np.zeros((shape[0], s, s), np.uint8) if b > 1 and not instant_major else None
+    for (first, m, f), k in zip(data.lights, lights[:, 0]):
+        if first < 0:
+            continue
         n = m * b * f
         block = data.maps[first:first + n].reshape(m, b, f, s, s)
-        if laid_out:   # texel_major.py put slot first / B + m F + f there
-            assert k * b == first, "laid-out slots out of order"
-        elif instant_major:
+        if instant_major:
             maps[k:k + m * f].reshape(m, f, b, s, s)[...] = block.transpose(0, 2, 1, 3, 4)
         else:
             maps[k:k + m * f].reshape(m, f, s, s, b)[...] = block.transpose(0, 2, 3, 4, 1)   # no temporary
-        faces[k:k + m * f] = data.faces[first:first + n].reshape(m, b, f, -1)[:, 0].reshape(m * f, -1)
         if varying is not None:   # flags for spans of time (a sharp instant reads none)
             varying[k:k + m * f] = data.varying[first:first + n].reshape(m, b, f, s, s)[:, 0].reshape(m * f, s, s)
-        lights[j, 0] = k
-        k += m * f
     return maps, faces, varying, lights
 
 

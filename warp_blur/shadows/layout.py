@@ -5,11 +5,15 @@ patterns, cube faces and fitted frusta."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..core.camera import Projection
 from ..usd.lights import DISK, DISTANT, RECT, SPHERE
+
+if TYPE_CHECKING:
+    from .texel_major import TexelMajorLayout
 
 FAR = 1.0e30
 #: a single fitted frustum is used when all geometry is within this angle of one direction
@@ -105,8 +109,8 @@ class ShadowData:
     size: int
     counters: dict | None = None
     device_arrays: dict = field(default_factory=dict)   # (device, layout) -> uploaded (maps, varying, faces, slot lights)
-    #: the maps already laid out for spans of time (a texel_major.TexelMajorLayout), when asked for
-    texel_major: object | None = None
+    #: the maps already laid out for spans of time, when asked for
+    texel_major: TexelMajorLayout | None = None
     _varying: np.ndarray | None = field(default=None, repr=False)
 
     @property

@@ -494,7 +494,8 @@ class ShadowMaps:
             for m in range(len(lay.offsets)):
                 for u in times:
                     for fi, face in enumerate(lay.faces):
-                        if keys is None and lay.warp is not None:
+                        queued = keys is None and lay.warp is not None
+                        if queued:
                             jobs.append((idx, fi, m, u))
                         elif keys is None:
                             t0 = time.perf_counter()
@@ -513,7 +514,7 @@ class ShadowMaps:
                         else:
                             maps[idx] = self._warp_face(lay, fi, m, u, keys)
                             self._count("shadow_maps_warped", 1)
-                        if laid is not None and not (jobs and jobs[-1][0] == idx):   # rendered here
+                        if laid is not None and not queued:   # rendered (or warped) just now
                             laid.rendered(idx)
                         faces[idx, 0:9] = face.rotation.ravel()
                         faces[idx, 9:12] = lay.offsets[m]
