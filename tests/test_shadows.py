@@ -273,6 +273,20 @@ def test_sharp_instants_build_no_varying_flags(scene_path):
     assert "shadow_texels_varying" in render(path, "stochastic", shadows="direct").stats
 
 
+def test_pcf_widens_the_penumbra_of_a_sharp_shadow_and_keeps_its_area(scene_path):
+    """shadow_pcf = r averages (2r + 1)^2 bilinear taps a texel apart: a still occluder's sharp
+    shadow gets a wider penumbra, the lit ground keeps its level and the shadow's integral (mean
+    luminance) barely moves."""
+    path = shadow_stage(scene_path())
+    sharp = luminance(render(path, "accumulation", samples=1, shadow_map_size=128, shadows="direct"))
+    soft = luminance(render(path, "accumulation", samples=1, shadow_map_size=128, shadows="direct", shadow_pcf=2))
+    lit = np.median(sharp)
+    penumbra = lambda lum: ((lum > 0.1 * lit) & (lum < 0.9 * lit)).sum()  # noqa: E731
+    assert penumbra(soft) > 1.5 * penumbra(sharp) > 0
+    assert abs(np.median(soft) - lit) < 1e-6 * lit
+    assert abs(soft.mean() - sharp.mean()) < 0.01 * sharp.mean()
+
+
 def test_moving_receiver_is_not_shadowed_by_itself_at_other_instants(scene_path):
     """A lit quad rushing towards the camera, the only geometry, under a sun from the camera side:
     nothing can shadow it. Shadow maps at a few instants of the shutter hold the quad where it is

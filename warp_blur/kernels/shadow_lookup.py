@@ -54,21 +54,40 @@ def face_rotation(sh: Shading, f: int) -> wp.mat33:
 
 
 @wp.func
-def texel_lit(sh: Shading, f: int, i: int, j: int, b0: int, b1: int, frac: float, depth: float) -> float:
-    """Depth comparison at texel (i, j) of face slot f, blended between map instants b0 and b1
-    (weight frac of b1; the two are adjacent in memory)."""
-    s = sh.shadow_size
-    ii = wp.clamp(i, 0, s - 1)
-    jj = wp.clamp(j, 0, s - 1)
+def texel_lit(maps: wp.array4d(dtype=float), f: int, i: int, j: int, b0: int, b1: int, frac: float,
+              depth: float) -> float:
+    """Depth comparison at texel (i, j) (within the face) of face slot f, blended between map
+    instants b0 and b1 (weight frac of b1; the two are adjacent in memory). The maps are passed
+    rather than the Shading struct, so their pointer and strides are read once per lookup."""
     lit = float(0.0)
-    if depth <= sh.shadow_maps[f, jj, ii, b0]:
+    if depth <= maps[f, j, i, b0]:
         lit = 1.0
     if frac > 0.0:
         lit1 = float(0.0)
-        if depth <= sh.shadow_maps[f, jj, ii, b1]:
+        if depth <= maps[f, j, i, b1]:
             lit1 = 1.0
         lit = lit + frac * (lit1 - lit)
     return lit
+
+
+@wp.func
+def bilinear_lit(maps: wp.array4d(dtype=float), s: int, f: int, fx: float, fy: float, b0: int, b1: int,
+                 frac: float, depth: float) -> float:
+    """The 2x2 bilinear tap of depth comparisons at continuous texel coordinates (fx, fy) (texel
+    centres at integers; taps outside the face clamp to its edge)."""
+    i = int(wp.floor(fx))
+    j = int(wp.floor(fy))
+    ax = fx - float(i)
+    ay = fy - float(j)
+    i0 = wp.clamp(i, 0, s - 1)
+    i1 = wp.clamp(i + 1, 0, s - 1)
+    j0 = wp.clamp(j, 0, s - 1)
+    j1 = wp.clamp(j + 1, 0, s - 1)
+    total = (1.0 - ax) * (1.0 - ay) * texel_lit(maps, f, i0, j0, b0, b1, frac, depth)
+    total += ax * (1.0 - ay) * texel_lit(maps, f, i1, j0, b0, b1, frac, depth)
+    total += (1.0 - ax) * ay * texel_lit(maps, f, i0, j1, b0, b1, frac, depth)
+    total += ax * ay * texel_lit(maps, f, i1, j1, b0, b1, frac, depth)
+    return total
 
 
 @wp.func
@@ -129,20 +148,15 @@ def face_visibility(sh: Shading, f: int, b0: int, b1: int, frac: float, pl: wp.v
     if c[3] == 0.0:
         return -1.0
     depth = c[2]
+    maps = sh.shadow_maps
+    size = sh.shadow_size
     r = sh.shadow_pcf
+    if r == 0:
+        return bilinear_lit(maps, size, f, c[0], c[1], b0, b1, frac, depth)
     total = float(0.0)
     for dy in range(-r, r + 1):
         for dx in range(-r, r + 1):
-            fx = c[0] + float(dx)
-            fy = c[1] + float(dy)
-            i = int(wp.floor(fx))
-            j = int(wp.floor(fy))
-            ax = fx - float(i)
-            ay = fy - float(j)
-            total += (1.0 - ax) * (1.0 - ay) * texel_lit(sh, f, i, j, b0, b1, frac, depth)
-            total += ax * (1.0 - ay) * texel_lit(sh, f, i + 1, j, b0, b1, frac, depth)
-            total += (1.0 - ax) * ay * texel_lit(sh, f, i, j + 1, b0, b1, frac, depth)
-            total += ax * ay * texel_lit(sh, f, i + 1, j + 1, b0, b1, frac, depth)
+            total += bilinear_lit(maps, size, f, c[0] + float(dx), c[1] + float(dy), b0, b1, frac, depth)
     return total / float((2 * r + 1) * (2 * r + 1))
 
 
