@@ -95,10 +95,11 @@ class FaceRasterizer:
                          lambda y0, y1: [view, geo, y0, y1, depth], self.device, threads)
         return depth.numpy().reshape(self.size, self.size)
 
-    def gather(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, threads: int | None):
+    def gather(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, threads: int | None,
+               subset: np.ndarray | None = None):
         """Depth (S*S,), triangle (S*S,) and barycentrics (S*S, 2) warp arrays of the face (a warp
-        key: each texel knows the surface point it sees)."""
-        view, geo, b = self.scene(a, t, face, s, None)
+        key: each texel knows the surface point it sees), of the visible triangles (of `subset`)."""
+        view, geo, b = self.scene(a, t, face, s, subset)
         n = self.size * self.size
         depth = wp.empty(n, dtype=float, device=self.device)
         tri = wp.empty(n, dtype=int, device=self.device)

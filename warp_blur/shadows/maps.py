@@ -39,6 +39,7 @@ from ..core.log import warn_once
 from ..core.parallel import default_threads, launch_pixels, map_threads
 from ..kernels.shadow_lookup import FACE_WIDTH
 from ..kernels.shadow_raster import warp_texels
+from .casters import light_casters
 from .direct import STILL_PROBES, FaceRasterizer, still_triangles
 from .layout import (FAR, Face, KeyMesh, LightLayout, Sample, ShadowData, ShadowOptions, fit_faces, light_frame,
                      light_sample_offsets)
@@ -79,6 +80,7 @@ class ShadowMaps:
         self._meshes: dict = {}
         self._binned: ShadowData | None = None
         self._still: dict[int, np.ndarray] = {}
+        self._casters: dict[int, np.ndarray | None] = {}   # per light row: (T,) triangles that may cast
         self._raster = FaceRasterizer(tables, tri_vertices, options.size, device)
         self._lock = threading.Lock()
         self._bases: dict[tuple[int, int, int], np.ndarray] = {}
@@ -151,11 +153,18 @@ class ShadowMaps:
                          for a in locs[1:])
             static &= all(np.array_equal(s.tri_visible, probes[0].tri_visible) for s in probes[1:])
             self.layouts.append(LightLayout(j, kind, offsets, faces, static))
+        self._plan_casters(probes[1])
         self.counters["shadow_lights"] = len(self.layouts)
         self.counters["shadow_light_samples"] = [len(lay.offsets) for lay in self.layouts]
         self.counters["shadow_faces"] = [len(lay.faces) for lay in self.layouts]
         self.counters["shadow_map_size"] = self.size
         self.counters["shadow_mode"] = o.mode
+
+    def _plan_casters(self, centre: Sample) -> None:
+        """Each light's triangles that may cast a shadow (casters.light_casters)."""
+        self._casters, self.counters["shadow_non_casters"] = light_casters(
+            self.layouts, centre, lambda lay: [centre] if lay.static else [self.sample(u) for u in STILL_PROBES],
+            self.tri_vertices)
 
     def times_for(self, requested: int) -> int:
         """Map instants for the time-continuous methods: 1 when nothing moves in any light's view,
@@ -191,7 +200,14 @@ class ShadowMaps:
     def _depth_over(self, lay: LightLayout, fi: int, m: int, s: Sample, subset: np.ndarray | None,
                     base: np.ndarray | None, threads: int | None) -> np.ndarray:
         a, t = self._face_transform(lay, lay.faces[fi], m, s)
-        return self._raster.depth_over(a, t, lay.faces[fi], s, subset, base, threads)
+        return self._raster.depth_over(a, t, lay.faces[fi], s, self._cast(lay, subset), base, threads)
+
+    def _cast(self, lay: LightLayout, subset: np.ndarray | None) -> np.ndarray | None:
+        """subset (a (T,) mask, None: all) without the triangles that cannot cast from lay."""
+        casters = self._casters.get(lay.row)
+        if casters is None:
+            return subset
+        return casters if subset is None else subset & casters
 
     def _base(self, lay: LightLayout, fi: int, m: int, target: Sample, still: np.ndarray,
               threads: int | None) -> np.ndarray:
@@ -287,7 +303,7 @@ class ShadowMaps:
             out = []
             for face in lay.faces:
                 a, t = self._face_transform(lay, face, self._centre(lay), s)
-                d, tr, ba = self._raster.gather(a, t, face, s, self.threads)
+                d, tr, ba = self._raster.gather(a, t, face, s, self.threads, self._cast(lay, None))
                 out.append((d.numpy().reshape(self.size, self.size), tr.numpy().reshape(self.size, self.size),
                             ba.numpy().reshape(self.size, self.size, 2)))
             self._keys[ident] = out
