@@ -1,0 +1,81 @@
+"""Struct arguments of warp_blur's @wp.func pass by reference in the generated C++
+(core/struct_refs.py); Warp code outside the package keeps Warp's by-value semantics."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import warp as wp
+
+import warp_blur as wb
+from warp_blur.core import struct_refs
+
+HEADER = """static wp::vec_t<3u, float> shade_0(
+    View_a6a9bfbf var_view,
+    Shading_b2017e80 var_sh,
+    wp::int32 var_e,
+    Moving_ddbbaefb var_m)
+{
+    Shading_b2017e80 var_12;
+    shade_1(var_view, var_sh);
+}
+static void adj_shade_0(
+    Shading_b2017e80 var_sh,
+    Shading_b2017e80 & adj_sh,
+    wp::float32 & adj_ret)
+"""
+
+
+def test_struct_parameters_become_references_and_nothing_else_changes():
+    out = struct_refs.by_reference(HEADER)
+    assert "    View_a6a9bfbf& var_view,\n    Shading_b2017e80& var_sh,\n    wp::int32 var_e,\n" in out
+    assert "    Moving_ddbbaefb& var_m)\n" in out
+    assert "    Shading_b2017e80 var_12;" in out                      # a local stays a value
+    assert "shade_1(var_view, var_sh);" in out                        # calls are unchanged
+    assert "    Shading_b2017e80 & adj_sh,\n    wp::float32 & adj_ret)" in out
+    assert out.count("& var_") == 4
+
+
+def test_the_package_modules_are_built_with_references(tmp_path):
+    """After a render, the sharp rasterizer's module (a still scene: every method renders it
+    sharp) carries the option, so its cache key differs from a by-value build, and its generated
+    C++ takes Shading by reference."""
+    from scenes import shadow_stage
+    path = shadow_stage(str(tmp_path / "s.usda"))
+    wb.render(path, frame=1, method="stochastic", samples=2, resolution=(32, 24), aovs=())
+    assert struct_refs.installed()   # by warp_blur.kernels, before any of its modules was defined
+    module = wp.get_module("warp_blur.kernels.raster")
+    assert module.options.get(struct_refs.OPTION) == 1
+    block_dim = next(iter(module.execs))[1]          # the CPU build's (one thread per block)
+    ident = module.get_module_identifier(block_dim=block_dim)
+    source = open(os.path.join(wp.config.kernel_cache_dir, ident, ident + ".cpp")).read()
+    assert "& var_sh," in source and " var_sh," in source
+
+
+@wp.struct
+class Box:
+    value: float
+
+
+@wp.func
+def overwrite(b: Box) -> float:
+    b.value = 20.0
+    return b.value
+
+
+@wp.kernel
+def overwrite_kernel(out: wp.array(dtype=float)):
+    b = Box()
+    b.value = 10.0
+    inner = overwrite(b)
+    out[0] = b.value
+    out[1] = inner
+
+
+def test_warp_code_outside_the_package_keeps_passing_structs_by_value():
+    out = wp.zeros(2, dtype=float, device="cpu")
+    wp.launch(overwrite_kernel, 1, inputs=[out], device="cpu")
+    assert list(out.numpy()) == [10.0, 20.0]
+    assert struct_refs.OPTION not in wp.get_module(__name__).options
+    assert np.isfinite(out.numpy()).all()

@@ -1,0 +1,67 @@
+"""Struct arguments of this package's @wp.func passed by reference in the generated C++.
+
+Warp (1.19) passes every struct argument of a @wp.func by value (NVIDIA/warp#878, #1277). Each
+call the compiler keeps out of line copies the whole struct: Shading is over a kilobyte, and LLVM
+keeps shading, interval and radiance helpers out of line once a kernel grows. On demo those copies
+were a quarter of the analytic frame and a third of the stochastic one. This package's functions
+never assign to a struct argument, so passing it as `T&` changes nothing but the copies.
+
+Only functions defined in warp_blur get references (other Warp code in the process keeps Warp's
+semantics). warp_blur's modules carry an extra option, so their cache key differs from that of
+binaries built without references. WARP_BLUR_STRUCT_REFS=0 switches it off (for A/B timing).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+
+#: a parameter line of a generated function header whose type is a Warp struct (Name_hash8)
+_STRUCT_PARAM = re.compile(r"^(\s+)([A-Za-z_]\w*_[0-9a-f]{8}) (var_\w+)(,|\))$", re.M)
+#: module option marking binaries built with references (part of Warp's module hash)
+OPTION = "warp_blur_struct_refs"
+_installed = False
+
+
+def by_reference(source: str) -> str:
+    """Generated C++ of a function with its struct parameters declared `T&` instead of `T`."""
+    return _STRUCT_PARAM.sub(r"\1\2& \3\4", source)
+
+
+def _ours(name: str | None) -> bool:
+    return bool(name) and (name == "warp_blur" or name.startswith("warp_blur."))
+
+
+def install() -> bool:
+    """Wrap Warp's function code generator and module constructor (once per process). False when
+    switched off by the environment or when this Warp lacks the hooks (then nothing changes)."""
+    global _installed
+    if _installed:
+        return True
+    if os.environ.get("WARP_BLUR_STRUCT_REFS", "1") == "0":
+        return False
+    try:
+        import warp._src.codegen as codegen
+        import warp._src.context as context
+        generate, module_init = codegen.codegen_func, context.Module.__init__
+    except (ImportError, AttributeError):
+        return False
+
+    def codegen_func(adj, *args, **kwargs):
+        source = generate(adj, *args, **kwargs)
+        func = getattr(adj, "func", None)
+        return by_reference(source) if _ours(getattr(func, "__module__", None)) else source
+
+    def init(self, name, *args, **kwargs):
+        module_init(self, name, *args, **kwargs)
+        if _ours(name):
+            self.options[OPTION] = 1
+
+    codegen.codegen_func = codegen_func
+    context.Module.__init__ = init
+    _installed = True
+    return True
+
+
+def installed() -> bool:
+    return _installed
