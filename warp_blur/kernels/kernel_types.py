@@ -99,6 +99,7 @@ class Shading:
     shadow_bias: float         # depth bias, in texels (world size of a texel at the receiver)
     shadow_normal_bias: float  # receiver offset along its normal, in texels
     shadow_pcf: int            # PCF radius in texels (0 = bilinear 2x2)
+    shadow_nearest: int        # 1: a lookup at time u reads the nearest map instant, not a blend of two
     tex: Textures
 
 

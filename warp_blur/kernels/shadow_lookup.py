@@ -20,8 +20,11 @@ instant (accumulation), which reads one or two map instants, it holds each insta
 
 Comparisons are averaged, never depths: a light's visibility at time u is the PCF comparison
 averaged over its M samples, linearly interpolated between the two maps whose instants bracket u
-(maps sit at (b + 0.5)/B of the shutter); over a time span it is the mean of point values, or
-one point value where the light holds still and the texels read never change (shadow_varying).
+(maps sit at (b + 0.5)/B of the shutter). Where shadow_nearest is set (stochastic) it is the
+nearest map's value instead: over the random times of a pixel's samples both average to the same
+shutter mean, and the nearest takes one lookup where a moving light's blend takes two. Over a time
+span it is the mean of point values, or one point value where the light holds still and the
+texels read never change (shadow_varying).
 """
 
 from __future__ import annotations
@@ -251,6 +254,11 @@ def light_visibility_at(sh: Shading, j: int, u: float, p: wp.vec3, vel: wp.vec3,
         b0 = wp.clamp(int(wp.floor(x)), 0, times - 1)
         b1 = wp.min(b0 + 1, times - 1)
         frac = wp.clamp(x - float(b0), 0.0, 1.0)
+        if sh.shadow_nearest != 0:
+            if frac >= 0.5:
+                b0 = b1
+            b1 = b0
+            frac = 0.0
     t0 = map_instant(sh, b0, u)
     t1 = map_instant(sh, b1, u)
     blend = frac > 0.0 and b1 != b0

@@ -157,6 +157,7 @@ def render_stochastic(ctx: FrameContext) -> np.ndarray:
     n = s.resolved_samples
     dev = ctx.device
     plan, geo, (static_bins, moving_bins), sh, view = prepare_motion(ctx)
+    sh.shadow_nearest = 1
     rgba = wp.zeros((ctx.num_pixels, 4), dtype=float, device=dev)
     subs = ctx.sub_pixel_offsets()
     max_band = max(1, SCRATCH_BYTES // (12 * n))

@@ -237,6 +237,7 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
     s.shadow_bias = float(options.bias) if options is not None else 1.0
     s.shadow_normal_bias = float(options.normal_bias) if options is not None else 1.5
     s.shadow_pcf = int(options.pcf) if options is not None else 0
+    s.shadow_nearest = 0
     return s
 
 
