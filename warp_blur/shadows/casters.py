@@ -123,17 +123,27 @@ def light_positions(lay: LightLayout, s: Sample) -> tuple[np.ndarray, bool]:
     return origin + lay.offsets @ axes, False
 
 
+def probe_scene(s: Sample, tri_vertices: np.ndarray) -> tuple[np.ndarray, float]:
+    """(used vertices (U, 3), on-plane tolerance) of the scene at probe s: what every light's
+    check at that probe reads."""
+    used = used_vertices(s, tri_vertices)
+    return used, PLANE_TOL * (float(np.ptp(used, axis=0).max(initial=0.0)) + 1e-30)
+
+
 def non_casters(groups: list[PlaneGroup], lay: LightLayout, probes: list[Sample],
-                tri_vertices: np.ndarray) -> np.ndarray:
+                tri_vertices: np.ndarray, scenes: dict | None = None) -> np.ndarray:
     """(T,) bool: triangles of the groups that cannot shadow anything from light lay at any probe
-    (their plane, taken at each probe, has the light strictly on the side all the scene is on)."""
+    (their plane, taken at each probe, has the light strictly on the side all the scene is on).
+    scenes: (sample, *probe_scene) by id of the probe's sample, shared by the frame's lights."""
     out = np.zeros(len(tri_vertices), bool)
     alive = list(groups)
+    scenes = {} if scenes is None else scenes
     for s in probes:
         if not alive:
             break
-        used = used_vertices(s, tri_vertices)
-        tol = PLANE_TOL * (float(np.ptp(used, axis=0).max()) + 1e-30)
+        if id(s) not in scenes:   # the sample is kept with its entry, so its id is not reused
+            scenes[id(s)] = (s, *probe_scene(s, tri_vertices))
+        _s, used, tol = scenes[id(s)]
         eyes, distant = light_positions(lay, s)
         alive = [g for g in alive if _plane_holds(g, s, used, tol, eyes, distant, tri_vertices)]
     for g in alive:
@@ -174,8 +184,9 @@ def light_casters(layouts: list[LightLayout], centre: Sample, probes: Callable[[
     groups = bounding_planes(centre, tri_vertices)
     casters: dict[int, np.ndarray | None] = {}
     dropped = []
+    scenes: dict = {}   # each probe's used vertices and tolerance, computed once for all lights
     for lay in layouts:
-        out = non_casters(groups, lay, probes(lay), tri_vertices) if groups else None
+        out = non_casters(groups, lay, probes(lay), tri_vertices, scenes) if groups else None
         casters[lay.row] = ~out if out is not None and out.any() else None
         dropped.append(int(out.sum()) if out is not None else 0)
     return casters, dropped
