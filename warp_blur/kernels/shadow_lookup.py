@@ -5,8 +5,9 @@ A *face* is one depth image seen from a light: orthographic (distant lights) or 
 (one fitted frustum, or the six faces of a cube). Its row in `Shading.shadow_faces` holds the
 face's rotation in the light's local frame (rows 0-8), the light sample's offset in that frame
 (9-11), the window (12-15: x0, y0, x1, y1 on the plane at distance 1, or in scene units when
-orthographic), the ortho flag (16), the near depth (17) and the cube flag (18: a cube face,
-whose rows are signed unit axes and whose window is square about its axis; see face_coords).
+orthographic), the ortho flag (16), the near depth (17), the cube flag (18: a cube face,
+whose rows are signed unit axes and whose window is square about its axis; see face_coords), and
+the window's scales (19, 20: texels per window unit in x and y; 21: window units per texel).
 face_from_cam is built at the lookup's own time from the light table (the light's frame in camera
 space then), so a moving camera never shifts a shadow: maps are rigid with the light. Texel (i, j) of an S×S face covers window x in
 [x0 + i (x1-x0)/S, ...], y measured downwards from y1, as camera pixels are.
@@ -34,7 +35,7 @@ import warp as wp
 from .kernel_types import Shading
 from .light_table import light_vec
 
-FACE_WIDTH = 19
+FACE_WIDTH = 22
 #: receiver points this close (relative) in two maps' light frames are one point: float32
 #: rounding of a world-still point seen from a moving camera, far below a texel
 SAME_POINT_TOL = wp.constant(1.0e-5)
@@ -98,20 +99,24 @@ def face_coords(sh: Shading, f: int, pl: wp.vec3, nl: wp.vec3) -> wp.vec4:
     """(texel x, texel y, biased depth, 1) of a receiver point pl with normal nl (facing the
     light), both in the light's local frame (light_local), in face f; w = 0 when the point is
     outside the face. Texel coordinates are continuous, texel centres at integers (bilinear taps
-    at floor and floor + 1)."""
+    at floor and floor + 1). One division: the window tests compare against the window scaled by
+    the depth (positive in a perspective face), and the face's scales are tabled (19-21)."""
     r = sh.shadow_faces
     rel = pl - wp.vec3(r[f, 9], r[f, 10], r[f, 11])
     # depth first: a cube face behind the point is rejected before the rest of the transform
     depth = -(r[f, 6] * rel[0] + r[f, 7] * rel[1] + r[f, 8] * rel[2])
     ortho = r[f, 16] > 0.5
-    if not ortho and depth <= r[f, 17]:
-        return wp.vec4(0.0, 0.0, 0.0, 0.0)
+    scale = float(1.0)
+    if not ortho:
+        if depth <= r[f, 17]:
+            return wp.vec4(0.0, 0.0, 0.0, 0.0)
+        scale = depth
     if r[f, 18] > 0.5:
         # a cube face: the rotated coordinates are the other two of rel up to sign, so the window
-        # test below rejects exactly when the largest |component| over depth passes the window
+        # test below rejects exactly when the largest |component| passes the window at that depth
         # (depth itself is one of them and never does); decided before the rotation is loaded
         big = wp.max(wp.max(wp.abs(rel[0]), wp.abs(rel[1])), wp.abs(rel[2]))
-        if big / depth > r[f, 14]:
+        if big > r[f, 14] * depth:
             return wp.vec4(0.0, 0.0, 0.0, 0.0)
     a = face_rotation(sh, f)
     q = a * rel
@@ -119,27 +124,19 @@ def face_coords(sh: Shading, f: int, pl: wp.vec3, nl: wp.vec3) -> wp.vec4:
     y0 = r[f, 13]
     x1 = r[f, 14]
     y1 = r[f, 15]
-    wx = q[0]
-    wy = q[1]
-    if not ortho:
-        wx = q[0] / depth
-        wy = q[1] / depth
-    if wx < x0 or wx > x1 or wy < y0 or wy > y1:
+    if q[0] < x0 * scale or q[0] > x1 * scale or q[1] < y0 * scale or q[1] > y1 * scale:
         return wp.vec4(0.0, 0.0, 0.0, 0.0)
-    size = float(sh.shadow_size)
-    texel = (x1 - x0) / size
-    if not ortho:
-        texel = texel * depth
+    texel = r[f, 21] * scale
     # normal offset, then a constant bias, both in texels at the receiver
     qn = q + (a * nl) * (sh.shadow_normal_bias * texel)
     depth = -qn[2] - sh.shadow_bias * texel
     wx = qn[0]
     wy = qn[1]
     if not ortho:
-        dn = wp.max(-qn[2], sh.shadow_faces[f, 17])
-        wx = qn[0] / dn
-        wy = qn[1] / dn
-    return wp.vec4((wx - x0) / (x1 - x0) * size - 0.5, (y1 - wy) / (y1 - y0) * size - 0.5, depth, 1.0)
+        inv = 1.0 / wp.max(-qn[2], r[f, 17])
+        wx = qn[0] * inv
+        wy = qn[1] * inv
+    return wp.vec4((wx - x0) * r[f, 19] - 0.5, (y1 - wy) * r[f, 20] - 0.5, depth, 1.0)
 
 
 @wp.func

@@ -538,6 +538,7 @@ class ShadowMaps:
                         faces[idx, 16] = 1.0 if face.ortho else 0.0
                         faces[idx, 17] = face.near if not face.ortho else -FAR
                         faces[idx, 18] = 1.0 if face.cube else 0.0
+                        faces[idx, 19:22] = face_scales(face.window, s)
                         idx += 1
             direct_jobs.append((lay, jobs))
         self._render_direct(direct_jobs, maps, laid)
@@ -545,6 +546,13 @@ class ShadowMaps:
             laid.finish()
         self._add_time("shadows", time.perf_counter() - t_start)
         return ShadowData(maps, faces, info, len(times), s, self.counters, texel_major=laid)
+
+
+def face_scales(window: tuple[float, float, float, float], size: int) -> tuple[float, float, float]:
+    """(texels per window unit in x, in y, window units per texel in x) of a face's window (x0,
+    y0, x1, y1) at size texels a side: the lookup multiplies where it would divide."""
+    x0, y0, x1, y1 = (float(v) for v in window)
+    return size / (x1 - x0), size / (y1 - y0), (x1 - x0) / size
 
 
 def lit_materials(material_table: np.ndarray, tri_material: np.ndarray) -> bool:
