@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import warp as wp
 
 from warp_blur.raster.device_data import TriangleTables
 from warp_blur.shadows.direct import FaceRasterizer, still_triangles
@@ -70,3 +71,39 @@ def test_still_triangles_are_judged_in_the_lights_frame():
         row[0, 4:7] += shift
         probes.append(Sample(p, np.ones(2, bool), row))
     np.testing.assert_array_equal(still_triangles(probes, 0, tris), [True, False])
+
+
+@pytest.mark.parametrize("perspective", [False, True])
+def test_instants_splatted_together_equal_each_instant_splatted_alone(perspective):
+    """A face's instants splatted in one launch, texel-major over a base, equal each instant's own
+    map over the same base; the touched flags cover every texel whose depth differs between
+    instants, and no texel outside the triangles' reach."""
+    positions, tris = random_scene(2, perspective)
+    t = len(tris)
+    tables = TriangleTables(tris, np.zeros(t, np.int32), np.zeros(t, np.int32), np.zeros((3 * t, 3), np.float32), "cpu")
+    face = Face(np.eye(3), (-1.0, -1.0, 1.0, 1.0), False, 0.1) if perspective else \
+        Face(np.eye(3), (-2.5, -2.5, 2.5, 2.5), True, -1e30)
+    raster = FaceRasterizer(tables, tris, SIZE, "cpu")
+    times = 4
+    rng = np.random.default_rng(3)
+    visible = rng.random(t) < 0.5          # the triangles that move; the rest are the base
+    samples, transforms = [], []
+    for b in range(times):
+        moved = positions.copy()
+        moved[tris[visible].ravel()] += (0.15 * b, -0.1 * b, 0.05 * b)
+        samples.append(Sample(moved, np.ones(t, bool), np.zeros((0, 18), np.float32)))
+        transforms.append((np.eye(3), np.zeros(3)))
+    base = raster.depth_over(np.eye(3), np.zeros(3), face, samples[0], ~visible, None, 1)
+    geo = raster.instants_geometry(transforms, samples, list(range(times)), times, visible)
+    laid = np.ascontiguousarray(np.repeat(base[..., None], times, axis=2))
+    target = wp.array(laid.ravel(), dtype=float, device="cpu")
+    touched = wp.zeros(SIZE * SIZE, dtype=wp.uint8, device="cpu")
+    raster.splat_instants(face, geo, times, target, touched, 2)
+    together = target.numpy().reshape(SIZE, SIZE, times)
+    for b in range(times):
+        alone = raster.depth_over(np.eye(3), np.zeros(3), face, samples[b], visible, base, 1)
+        np.testing.assert_array_equal(together[..., b], alone)
+    varies = (together != together[..., :1]).any(axis=2)
+    flags = touched.numpy().reshape(SIZE, SIZE).astype(bool)
+    assert varies.any() and not (varies & ~flags).any()
+    assert not flags[np.isinf(together).all(axis=2)].any()   # nothing drew where every instant is empty

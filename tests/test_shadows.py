@@ -271,11 +271,16 @@ def test_texels_that_never_change_take_one_lookup_for_a_time_span(scene_path, mo
     """A static receiver's interval averages the shadow over its whole span; where the light holds
     still and the texels read never change (most of the map), one lookup stands for the span.
     The image equals looking up every instant."""
-    from warp_blur.shadows import layout as shadow_layout
+    from warp_blur.shadows.texel_major import TexelMajorLayout
     path = shadow_stage(scene_path(), occluder_samples=MOVING)
     steady = render(path, "analytic", shadows="direct")
     assert 0.0 < steady.stats["shadow_texels_varying"] < 0.3
-    monkeypatch.setattr(shadow_layout, "face_varying", lambda stack: np.ones(stack.shape[1:], bool))
+    finish = TexelMajorLayout.finish
+
+    def every_texel_varies(laid: TexelMajorLayout) -> None:
+        finish(laid)
+        laid.varying[...] = 1
+    monkeypatch.setattr(TexelMajorLayout, "finish", every_texel_varies)
     every = render(path, "analytic", shadows="direct")
     assert every.stats["shadow_texels_varying"] == 1.0
     assert np.abs(steady.rgba - every.rgba).max() < 1e-5

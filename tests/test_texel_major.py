@@ -1,13 +1,17 @@
-"""Maps laid out face by face while they render (shadows/texel_major.py) equal the whole frame's
-layout done afterwards (device_data.face_slots) and its varying-texel flags."""
+"""shadows/texel_major.py: maps put into the texel-major layout one at a time, or a face filled
+with a base, equal the whole frame's layout done afterwards (device_data.face_slots) and its
+varying-texel flags; core/reuse.py hands a frame's layout memory to the next frame."""
 
 from __future__ import annotations
+
+import gc
 
 import numpy as np
 import pytest
 
+from warp_blur.core import reuse
 from warp_blur.raster.device_data import face_slots
-from warp_blur.shadows.layout import ShadowData
+from warp_blur.shadows.layout import ShadowData, varying_texels
 from warp_blur.shadows.texel_major import TexelMajorLayout
 
 B, S = 4, 16
@@ -31,36 +35,69 @@ def frame_maps(seed: int) -> tuple[np.ndarray, np.ndarray]:
     return maps, np.array(lights, np.int32)
 
 
-@pytest.mark.parametrize("seed", [0, 1])
-def test_faces_laid_out_in_any_order_equal_the_whole_layout(seed):
-    maps, lights = frame_maps(seed)
-    expected, _faces, expected_varying, _lights = face_slots(
-        ShadowData(maps, np.zeros((len(maps), 19), np.float32), lights, B, S))
-    laid = TexelMajorLayout(maps, B)
+def layout_for(maps: np.ndarray, lights: np.ndarray) -> TexelMajorLayout:
+    laid = TexelMajorLayout(len(maps) // B, S, B)
     for first, m, f in lights:
         laid.add_light(int(first), int(m), int(f))
-    # every instant of the second light's last face (slot 4), and a random third of the rest,
-    # reported in a random order
-    rng = np.random.default_rng(seed)
-    last_face = [8 + b * 3 + 2 for b in range(B)]
-    others = [i for i in rng.permutation(len(maps)) if i not in last_face][: len(maps) // 3]
-    for idx in rng.permutation(last_face + others):
-        laid.rendered(int(idx))
-    # a face whose B instants were all reported is laid out already, before finish()
-    done = [slot for slot in range(expected.shape[0]) if laid.laid_out(slot)]
-    assert 4 in done
-    for slot in done:
-        np.testing.assert_array_equal(laid.slots[slot], expected[slot])
-        np.testing.assert_array_equal(laid.varying[slot], expected_varying[slot])
+    return laid
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_maps_put_in_any_order_equal_the_whole_layout(seed):
+    maps, lights = frame_maps(seed)
+    expected, _faces, expected_varying, _lights = face_slots(
+        ShadowData(maps, np.zeros((len(maps), 22), np.float32), lights, B, S))
+    laid = layout_for(maps, lights)
+    for idx in np.random.default_rng(seed).permutation(len(maps)):
+        laid.put(int(idx), maps[idx])
     laid.finish()
     np.testing.assert_array_equal(laid.slots, expected)
     np.testing.assert_array_equal(laid.varying, expected_varying)
     assert 0.0 < laid.varying.mean() < 0.5
+    np.testing.assert_array_equal(laid.instant_maps(), maps)
+    # and the frame's data reads the same maps whichever layout it was built in
+    data = ShadowData(None, np.zeros((len(maps), 22), np.float32), lights, B, S, texel_major=laid)
+    np.testing.assert_array_equal(data.instant_maps(), maps)
+    np.testing.assert_array_equal(data.varying, varying_texels(maps, lights, B))
+
+
+def test_a_base_fills_the_chosen_instants_and_a_put_map_the_rest():
+    maps, lights = frame_maps(0)
+    laid = layout_for(maps, lights)
+    base = np.arange(S * S, dtype=np.float32).reshape(S, S)
+    laid.fill(4, [1, 2, 3], base)              # slot 4: the second light's last face
+    laid.put(8 + 0 * 3 + 2, maps[8 + 2])        # its instant 0, made on its own
+    np.testing.assert_array_equal(laid.slots[4][..., 0], maps[10])
+    for b in (1, 2, 3):
+        np.testing.assert_array_equal(laid.slots[4][..., b], base)
+    laid.flag(4)
+    np.testing.assert_array_equal(laid.varying[4], maps[10] != base)
+    laid.fill(0, list(range(B)), None)          # a whole face, empty
+    assert np.isinf(laid.slots[0]).all()
 
 
 def test_a_map_of_no_registered_light_is_an_error():
     maps, lights = frame_maps(0)
-    laid = TexelMajorLayout(maps, B)
+    laid = TexelMajorLayout(len(maps) // B, S, B)
     laid.add_light(0, 2, 1)
     with pytest.raises(IndexError):
-        laid.rendered(len(maps) - 1)
+        laid.put(len(maps) - 1, maps[0])
+
+
+def test_a_frames_layout_memory_is_reused_only_once_its_frame_is_gone():
+    class Frame:
+        pass
+    reuse.clear()
+    first, second = Frame(), Frame()
+    a = reuse.reused_empty((3, 8, 8, 4), float, first)
+    b = reuse.reused_empty((3, 8, 8, 4), float, second)
+    assert a.ptr != b.ptr                       # both frames alive: two arrays
+    ptr = a.ptr
+    del first, a
+    gc.collect()
+    third, fourth = Frame(), Frame()
+    c = reuse.reused_empty((3, 8, 8, 4), float, third)
+    assert c.ptr == ptr                         # the first frame's memory, handed on
+    d = reuse.reused_empty((2, 8, 8, 4), float, fourth)
+    assert d.ptr not in (ptr, b.ptr) and d.shape == (2, 8, 8, 4)
+    reuse.clear()

@@ -119,14 +119,18 @@ def clipped_box(view: View, a: wp.vec3, b: wp.vec3, c: wp.vec3, margin: float) -
 
 
 @wp.kernel(enable_backward=False)
-def splat_shadow_depth(view: View, geo: Geometry, row_lo: int, row_hi: int,
+def splat_shadow_depth(view: View, geo: Geometry, row_lo: int, row_hi: int, stride: int,
                        # in/out
-                       depth: wp.array(dtype=float)):
-    """depth[texel] = min(depth[texel], entry's depth there) for entry tid (static, in face
-    space) over the texel centres of its box within rows [row_lo, row_hi) (the pairs the texel
-    walk of render_shadow_texels tests, with the same hit test): few, small triangles over a base
-    map cost their own area, not the map's. The box is computed here (clipped_box), so a face
-    costs the host no binning. Launches for disjoint row bands may run in parallel."""
+                       depth: wp.array(dtype=float), touched: wp.array(dtype=wp.uint8)):
+    """depth[texel * stride + k] = min(that, entry's depth there) for entry tid (static, in face
+    space, at instant k = its entry_k0) over the texel centres of its box within rows [row_lo,
+    row_hi) (the pairs the texel walk of render_shadow_texels tests, with the same hit test): few,
+    small triangles over a base map cost their own area, not the map's. stride 1 with k 0 is one
+    map; stride B renders B instants of a face at once, each texel's instants side by side (the
+    layout lookups read); touched (when not empty) gets 1 at every texel an entry covers (over a
+    face filled with the same base at every instant, texels never touched are the same at every
+    instant). The box is computed here (clipped_box), so a face costs the host no binning.
+    Launches for disjoint row bands may run in parallel."""
     e = wp.tid()
     vi = geo.tri_vertices[geo.entry_tri[e]]
     a = entry_vertex(geo, e, vi[0], 0.0)
@@ -172,7 +176,26 @@ def splat_shadow_depth(view: View, geo: Geometry, row_lo: int, row_hi: int,
             if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
                 if not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3], 0.0, float(px) + 0.5,
                                     float(py) + 0.5):
-                    wp.atomic_min(depth, py * view.width + px, hit[1])
+                    wp.atomic_min(depth, (py * view.width + px) * stride + geo.entry_k0[e], hit[1])
+                    if touched.shape[0] > 0:
+                        touched[py * view.width + px] = wp.uint8(1)
+
+
+@wp.kernel(enable_backward=False)
+def flag_varying_texels(depth: wp.array(dtype=float), size: int, times: int,
+                        # output
+                        varying: wp.array(dtype=wp.uint8)):
+    """Row tid of a texel-major face: varying[texel] = 1 when the texel's `times` depths are not
+    all equal (layout.face_varying's flags), else 0. A row per thread."""
+    y = wp.tid()
+    for x in range(size):
+        t = y * size + x
+        d0 = depth[t * times]
+        flag = wp.uint8(0)
+        for b in range(1, times):
+            if depth[t * times + b] != d0:
+                flag = wp.uint8(1)
+        varying[t] = flag
 
 
 @wp.kernel(enable_backward=False)

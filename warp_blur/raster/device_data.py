@@ -297,7 +297,7 @@ def face_slots(data, out: np.ndarray | None = None,
         if first < 0:
             continue
         n = m * b * f
-        block = data.maps[first:first + n].reshape(m, b, f, s, s)
+        block = data.instant_maps()[first:first + n].reshape(m, b, f, s, s)
         if instant_major:
             maps[k:k + m * f].reshape(m, f, b, s, s)[...] = block.transpose(0, 2, 1, 3, 4)
         else:

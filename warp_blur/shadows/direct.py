@@ -12,6 +12,7 @@ import warp as wp
 from ..core.parallel import launch_pixels, launch_row_bands
 from ..kernels.shadow_raster import render_shadow_texels, splat_shadow_depth
 from ..raster.binning import TILE_SIZE, bin_entries, entry_pixel_bounds
+from ..kernels.kernel_types import Geometry
 from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_view
 from .layout import Face, Sample, light_frame
 
@@ -52,6 +53,7 @@ class FaceRasterizer:
 
     def __init__(self, tables: TriangleTables, tri_vertices: np.ndarray, size: int, device: str) -> None:
         self.tables, self.tri_vertices, self.size, self.device = tables, tri_vertices, size, device
+        self.no_flags = wp.zeros(0, dtype=wp.uint8, device=device)
 
     def _face_geometry(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, subset: np.ndarray | None):
         """(projection, face-space positions (V, 3), visible triangles (N,) (of `subset`, a (T,)
@@ -92,8 +94,41 @@ class FaceRasterizer:
         else:
             depth = wp.array(base.ravel(), dtype=float, device=self.device)
         launch_row_bands(splat_shadow_depth, len(tris), self.size,
-                         lambda y0, y1: [view, geo, y0, y1, depth], self.device, threads)
+                         lambda y0, y1: [view, geo, y0, y1, 1, depth, self.no_flags], self.device, threads)
         return depth.numpy().reshape(self.size, self.size)
+
+    def instants_geometry(self, transforms: list[tuple[np.ndarray, np.ndarray]], samples: list[Sample],
+                          instants: list[int], times: int, subset: np.ndarray | None) -> Geometry | None:
+        """Geometry of a face at several instants for splat_shadow_depth with stride `times`:
+        positions (times, V, 3) in face space (instant b = instants[i] from transforms[i] (A, t)
+        and samples[i]; others unused), one static entry per triangle visible at an instant (of
+        `subset`) with entry_k0 = entry_k1 = its instant. None when no triangle is visible."""
+        num_v = max(len(s.positions) for s in samples)
+        pos = np.zeros((times, max(num_v, 1), 3), np.float32)
+        tris, ks = [], []
+        for (a, t), s, b in zip(transforms, samples, instants):
+            pos[b, :len(s.positions)] = s.positions @ a.T + t
+            visible = s.tri_visible if len(s.tri_visible) else np.zeros(len(self.tri_vertices), bool)
+            if subset is not None:
+                visible = visible & subset
+            tri = np.flatnonzero(visible).astype(np.int32)
+            tris.append(tri)
+            ks.append(np.full(len(tri), b, np.int32))
+        tri = np.concatenate(tris) if tris else np.zeros(0, np.int32)
+        if len(tri) == 0:
+            return None
+        k = np.concatenate(ks)
+        return make_geometry(self.tables, pos, None, tri, k, k)
+
+    def splat_instants(self, face: Face, geo: Geometry, times: int, target: wp.array, touched: wp.array,
+                       threads: int | None) -> None:
+        """Splat instants_geometry's entries into target (S * S * times,): texel-major, each
+        texel's `times` depths side by side, over what it holds (the nearer depth wins); touched
+        (S * S,) uint8 gets 1 where an entry covers a texel at some instant."""
+        view = make_view(face.projection(self.size), 1, None, TILE_SIZE)
+        view.near = face.near
+        launch_row_bands(splat_shadow_depth, geo.entry_tri.shape[0], self.size,
+                         lambda y0, y1: [view, geo, y0, y1, times, target, touched], self.device, threads)
 
     def gather(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, threads: int | None,
                subset: np.ndarray | None = None):

@@ -98,11 +98,12 @@ class KeyMesh:
 
 @dataclass
 class ShadowData:
-    """Maps ready for shading: maps (N, S, S) float32, faces (N, FACE_WIDTH), lights (NL, 3) int32
-    [first map or -1, samples, faces], times B, and the frame's counters (for the share of
-    varying texels, recorded when `varying` is first needed)."""
+    """Maps ready for shading: maps (N, S, S) float32 (None when they were rendered straight into
+    texel_major), faces (N, FACE_WIDTH), lights (NL, 3) int32 [first map or -1, samples, faces],
+    times B, and the frame's counters (for the share of varying texels, recorded when `varying`
+    is first needed)."""
 
-    maps: np.ndarray
+    maps: np.ndarray | None
     faces: np.ndarray
     lights: np.ndarray
     times: int
@@ -113,6 +114,14 @@ class ShadowData:
     texel_major: TexelMajorLayout | None = None
     _varying: np.ndarray | None = field(default=None, repr=False)
 
+    def instant_maps(self) -> np.ndarray:
+        """(N, S, S): the maps in map order, each instant's image whole (made from texel_major
+        when the maps were rendered straight into it)."""
+        if self.maps is None:
+            assert self.texel_major is not None
+            self.maps = self.texel_major.instant_maps()
+        return self.maps
+
     @property
     def varying(self) -> np.ndarray | None:
         """(N, S, S) uint8: 1 where a texel's depth is not the same in all B maps of its light
@@ -122,7 +131,7 @@ class ShadowData:
         if self.times <= 1:
             return None
         if self._varying is None:
-            self._varying = varying_texels(self.maps, self.lights, self.times)
+            self._varying = varying_texels(self.instant_maps(), self.lights, self.times)
             if self.counters is not None:
                 self.counters["shadow_texels_varying"] = float(self._varying.mean()) if self._varying.size else 0.0
         return self._varying

@@ -11,16 +11,9 @@ fitted to the geometry at the probe instants (open, centre, close, and the keys)
 Area lights (sphere with a radius, disk, rect) are M point samples on the light, each with its own
 maps; shading averages the M depth comparisons (soft shadows). A sample's map is warped from the
 light centre's key maps (a moved light is the occluder moved the opposite way), or rendered
-directly in direct mode.
-
-Warping. Key maps are rendered at a few shutter instants (open and close, and more while the
-light-space motion between keys is more than a texel from linear). Each key texel knows the
-triangle and barycentrics it sees, so a grid of control points (every `grid`-th texel) follows the
-scene's own motion to any instant and light position. The grid's cells are warped as triangles
-(per target texel: key depth at the back-mapped source texel plus the interpolated depth change);
-cells that span a depth discontinuity or two objects are cut and their texels warped one by one
-with their own motion; the two keys bracketing the instant are warped and the nearer depth kept,
-so what one key hides the other shows. Depths are compared after warping, never averaged.
+directly in direct mode. Warping is shadows/warped.py's; a time-continuous frame's direct maps are
+splatted a face (all its instants) at a time straight into the layout its lookups read
+(texel_major.py).
 """
 
 from __future__ import annotations
@@ -32,23 +25,18 @@ from typing import Callable
 import numpy as np
 import warp as wp
 
-from ..raster.binning import bin_entries
-from ..raster.device_data import TriangleTables, device_array
+from ..raster.device_data import TriangleTables
 from ..usd.lights import DISK, RECT, SPHERE
 from ..core.log import warn_once
-from ..core.parallel import default_threads, launch_pixels, map_threads
+from ..core.parallel import default_threads, map_threads
 from ..kernels.shadow_lookup import FACE_WIDTH
-from ..kernels.shadow_raster import warp_texels
 from .casters import light_casters
 from .direct import STILL_PROBES, FaceRasterizer, still_triangles
-from .layout import (FAR, Face, KeyMesh, LightLayout, Sample, ShadowData, ShadowOptions, fit_faces, light_frame,
+from .layout import (FAR, Face, LightLayout, Sample, ShadowData, ShadowOptions, fit_faces, light_frame,
                      light_sample_offsets)
 from .texel_major import TexelMajorLayout
+from .warped import KeyWarping
 
-#: cells whose key depths differ by more than this many cell widths are cut (depth discontinuity)
-JUMP_CELLS = 8.0
-#: tile size (texels) of the warped triangles' bins: small, since control-point cells are small
-WARP_TILE = 8
 #: cost of warping one texel of a map (host-side mesh and gather kernel, seconds), measured by
 #: bench/bench_shadows.py on this project's 2-core machine; replaced by this process's own
 #: measurement once it has warped a map. `--shadows auto` weighs it against the measured cost of
@@ -58,7 +46,7 @@ WARP_SECONDS_PER_TEXEL = 3.5e-7
 KEY_MAP_COST = 1.75
 
 
-class ShadowMaps:
+class ShadowMaps(KeyWarping):
     """The shadow maps of one frame: built on demand for the instants shading asks for."""
 
     def __init__(self, tables: TriangleTables, tri_vertices: np.ndarray, tri_object: np.ndarray,
@@ -235,14 +223,14 @@ class ShadowMaps:
         self._count("shadow_maps_rendered", 1)
         return depth
 
-    def _render_direct(self, work: list[tuple[LightLayout, list[tuple[int, int, int, float]]]], maps: np.ndarray,
-                       laid: TexelMajorLayout | None = None) -> None:
-        """Render the lights' direct maps (per light, jobs (slot, face, light sample, time)) into
-        maps, one map per pool thread as a single-core launch: a map's host-side setup overlaps the
-        other threads' rasterizing, and no light waits for the last map of the one before. Still
-        bases (one per light, face and sample) are rendered first, so no two threads render the
-        same one. With `laid`, a face's instants render one after another and the thread that
-        completes a face lays it out while the others render on."""
+    def _render_direct(self, work: list[tuple[LightLayout, list[tuple[int, int, int, float]]]],
+                       put: Callable[[int, np.ndarray], None], laid: TexelMajorLayout | None = None) -> None:
+        """Render the lights' direct maps (per light, jobs (map index, face, light sample, time)).
+        Still bases (one per light, face and sample) are rendered first, so no two threads render
+        the same one. Without `laid`, one map per pool thread as a single-core launch (put(index,
+        depth) stores it): a map's host-side setup overlaps the other threads' rasterizing. With
+        `laid`, one face per pool thread: its instants splatted together in one single-core launch
+        straight into its texel-major slot (_render_slot)."""
         work = [(lay, jobs) for lay, jobs in work if jobs]
         if not work:
             return
@@ -254,196 +242,78 @@ class ShadowMaps:
             still = None if lay.static else self._still_triangles(lay)
             if still is not None and still.any():
                 first: dict[tuple[int, int], float] = {}
-                for _slot, fi, m, u in jobs:
+                for _idx, fi, m, u in jobs:
                     first.setdefault((fi, m), u)
                 bases += [(lay, fi, m, u, still) for (fi, m), u in first.items()]
         map_threads(lambda b: self._base(b[0], b[1], b[2], self.sample(b[3]), b[4], single), bases, threads)
-
-        def one(item: tuple[LightLayout, tuple[int, int, int, float]]) -> None:
-            lay, (slot, fi, m, u) = item
-            maps[slot] = self._direct_depth(lay, fi, m, u, single)
-            if laid is not None:
-                laid.rendered(slot)
-        order = [(lay, job) for lay, jobs in work
-                 for job in (sorted(jobs, key=lambda job: (job[2], job[1], job[3])) if laid is not None else jobs)]
-        map_threads(one, order, threads)   # with `laid`, face by face
+        if laid is None:
+            def one(item: tuple[LightLayout, tuple[int, int, int, float]]) -> None:
+                lay, (idx, fi, m, u) = item
+                put(idx, self._direct_depth(lay, fi, m, u, single))
+            map_threads(one, [(lay, job) for lay, jobs in work for job in jobs], threads)
+        else:
+            groups: dict[tuple[int, int, int], tuple[LightLayout, list[tuple[int, float]]]] = {}
+            for lay, jobs in work:
+                for idx, fi, m, u in jobs:
+                    groups.setdefault((lay.row, m, fi), (lay, []))[1].append((idx, u))
+            # a face per pool thread, as single-core launches; the faces with the most triangles
+            # first, so the last to finish is a small one
+            order = sorted(groups.items(), key=lambda g: -self._face_load(g[1][0], g[0][2]))
+            map_threads(lambda g: self._render_slot(g[1][0], g[0][2], g[0][1], g[1][1], laid, single), order,
+                        threads)
         self._add_time("shadow_render", time.perf_counter() - t0)
 
-    def _key_times(self, lay: LightLayout) -> list[float]:
-        """Key instants: open and close, bisected while the light-space motion between keys is
-        more than a texel from linear (up to `keys` keys)."""
-        keys = [0.0, 1.0]
-        texel = self._texel_size(lay)
-        while 2 * len(keys) - 1 <= self.options.keys:
-            worst = 0.0
-            for u0, u1 in zip(keys, keys[1:]):
-                a, b, mid = (self._local(lay.row, self.sample(u)) for u in (u0, u1, 0.5 * (u0 + u1)))
-                if a.shape == b.shape == mid.shape and len(a):
-                    dev = np.linalg.norm(mid - 0.5 * (a + b), axis=1)
-                    worst = max(worst, float((dev / texel(mid)).max()))
-            if worst <= 1.0:
-                break
-            keys = sorted(set(keys) | {0.5 * (u0 + u1) for u0, u1 in zip(keys, keys[1:])})
-        return keys
-
-    def _texel_size(self, lay: LightLayout) -> Callable[[np.ndarray], np.ndarray]:
-        """World size of a texel at light-local points (per point)."""
-        face = lay.faces[0]
-        w = (face.window[2] - face.window[0]) / self.size
+    def _face_load(self, lay: LightLayout, fi: int) -> int:
+        """Rough cost of rendering face fi of a light: the triangles whose vertices it may see
+        (at the shutter centre)."""
+        s = self.sample(0.5)
+        face = lay.faces[fi]
+        a, t = self._face_transform(lay, face, self._centre(lay), s)
+        q = s.positions @ a.T + t
+        depth = -q[:, 2]
         if face.ortho:
-            return lambda p: np.full(len(p), w)
-        return lambda p: np.maximum(np.linalg.norm(p, axis=1), 1e-12) * w
+            return len(self.tri_vertices)
+        x0, y0, x1, y1 = face.window
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inside = (depth > face.near) & (q[:, 0] >= x0 * depth) & (q[:, 0] <= x1 * depth) \
+                & (q[:, 1] >= y0 * depth) & (q[:, 1] <= y1 * depth)
+        return int(inside[self.tri_vertices].any(axis=1).sum()) if len(self.tri_vertices) else 0
 
-    def _key(self, lay: LightLayout, ki: int, key_time: float):
-        """Key maps of a light (centre sample) at a key instant: per face (depth, tri, bary) numpy."""
-        ident = (lay.row, ki)
-        if ident not in self._keys:
-            t0 = time.perf_counter()
-            s = self.sample(key_time)
-            out = []
-            for face in lay.faces:
-                a, t = self._face_transform(lay, face, self._centre(lay), s)
-                d, tr, ba = self._raster.gather(a, t, face, s, self.threads, self._cast(lay, None))
-                out.append((d.numpy().reshape(self.size, self.size), tr.numpy().reshape(self.size, self.size),
-                            ba.numpy().reshape(self.size, self.size, 2)))
-            self._keys[ident] = out
-            self._key_dev[ident] = wp.array(np.stack([o[0] for o in out]), dtype=float, device=self.device)
-            self._count("shadow_key_maps", len(lay.faces))
-            self._add_time("shadow_render", time.perf_counter() - t0)
-        return self._keys[ident], self._key_dev[ident]
-
-    def _centre(self, lay: LightLayout) -> int:
-        """The key maps' light position: the sample nearest the light's centre (its offset is
-        applied; the warp accounts for the difference to every other sample)."""
-        return int(np.argmin(np.linalg.norm(lay.offsets, axis=1)))
-
-    # ------------------------------------------------------------------------------ warping
-    def _key_mesh(self, lay: LightLayout, ident: tuple[int, int], fk: int) -> KeyMesh:
-        """What a key face's warp needs whatever the target (cached): control points at every
-        step-th texel with the surface they see, the mesh triangles that do not cross a depth
-        discontinuity or two objects, and the texels of the cut cells."""
-        cache_id = (ident, fk)
-        if cache_id in self._meshes:
-            return self._meshes[cache_id]
-        kdepth, ktri, kbary = self._keys[ident][fk]
-        kface = lay.faces[fk]
-        s = self.size
-        step = max(1, s // max(1, min(self.options.grid, s)))
-        g_idx = np.unique(np.minimum(np.arange(0, s + step, step), s - 1))
-        ng = len(g_idx)
-        gy, gx = np.meshgrid(g_idx, g_idx, indexing="ij")
-        ntri = ktri[gy, gx].ravel()
-        kz = kdepth[gy, gx].ravel()
-        valid = ntri >= 0
-        obj = np.where(valid, self.tri_object[np.maximum(ntri, 0)], -1)
-        texel_w = (kface.window[2] - kface.window[0]) / s
-        tau = JUMP_CELLS * step * texel_w * (np.ones_like(kz) if kface.ortho else np.where(valid, kz, 0.0))
-        i00 = (np.arange(ng - 1)[:, None] * ng + np.arange(ng - 1)[None, :]).ravel()
-        corners = np.stack([i00, i00 + 1, i00 + ng + 1, i00 + ng], axis=1)          # (C, 4): 00 10 11 01
-        tri_nodes = np.concatenate([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]])   # (2C, 3)
-        good = valid[tri_nodes].all(axis=1) & (obj[tri_nodes] == obj[tri_nodes[:, :1]]).all(axis=1)
-        zt = np.where(valid[tri_nodes], kz[tri_nodes], 0.0)
-        good &= (zt.max(axis=1) - zt.min(axis=1)) <= tau[tri_nodes].min(axis=1)
-        ncell = len(corners)
-        cut = ~(good[:ncell] & good[ncell:]) & valid[corners].any(axis=1)
-        # texels of cut cells (a cell spans its corner texels inclusive)
-        cut_grid = cut.reshape(ng - 1, ng - 1)
-        mask = np.zeros((s + step, s + step), bool)
-        mask[:(ng - 1) * step, :(ng - 1) * step] = np.kron(cut_grid, np.ones((step, step), bool))
-        mask[1:, :] |= mask[:-1, :].copy()
-        mask[:, 1:] |= mask[:, :-1].copy()
-        mask = mask[:s, :s] & (ktri >= 0)
-        ty, tx = np.nonzero(mask)
-        mesh = KeyMesh(
-            node_tri=ntri, node_bary=kbary[gy, gx].reshape(-1, 2), node_depth=kz,
-            node_src=np.stack([gx.ravel() + 0.5, gy.ravel() + 0.5], axis=1), tri_nodes=tri_nodes[good],
-            texel_xy=np.stack([tx, ty], axis=1), texel_tri=ktri[ty, tx], texel_bary=kbary[ty, tx],
-            texel_depth=kdepth[ty, tx])
-        self._meshes[cache_id] = mesh
-        return mesh
-
-    def _warp_prims(self, lay: LightLayout, ident: tuple[int, int], target: Sample, a: np.ndarray,
-                    t: np.ndarray, tface: Face):
-        """Warped triangles from one key's faces into a target face: (src (P, 3, 2), dst (P, 3, 2),
-        dz (P, 3), key face (P,)), and the number of control points that moved."""
-        s = self.size
-        proj = tface.projection(s)
-        tv = self.tri_vertices
-        srcs, dsts, dzs, keys = [], [], [], []
-        num_cp = 0
-
-        def motion(tri: np.ndarray, bary: np.ndarray):
-            """Target texel coords (N, 2), depth (N,) and validity of key surface points."""
-            wb, wc = bary[:, 0:1], bary[:, 1:2]
-            v = tv[np.maximum(tri, 0)]
-            p = (1 - wb - wc) * target.positions[v[:, 0]] + wb * target.positions[v[:, 1]] + wc * target.positions[v[:, 2]]
-            q = p @ a.T + t
-            depth = -q[:, 2]
-            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                xy = proj.project(q)
-                ok = np.isfinite(xy).all(axis=1) & (tri >= 0) & (np.abs(xy) < 4 * s).all(axis=1)
-            if not tface.ortho:
-                ok &= depth > tface.near
-            return xy, depth, ok
-
-        for fk in range(len(lay.faces)):
-            km = self._key_mesh(lay, ident, fk)
-            xy, depth, ok = motion(km.node_tri, km.node_bary)
-            num_cp += int((km.node_tri >= 0).sum())
-            tn = km.tri_nodes[ok[km.tri_nodes].all(axis=1)]
-            if len(tn):
-                srcs.append(km.node_src[tn])
-                dsts.append(xy[tn])
-                dzs.append((depth - km.node_depth)[tn])
-                keys.append(np.full(len(tn), fk, np.int32))
-            if len(km.texel_tri):   # cut cells: texels warp one by one with their own motion
-                pxy, pdepth, pok = motion(km.texel_tri, km.texel_bary)
-                txy = km.texel_xy[pok].astype(np.float64)
-                shift = pxy[pok] - (txy + 0.5)
-                pdz = (pdepth - km.texel_depth)[pok]
-                c = np.stack([txy, txy + (1, 0), txy + (1, 1), txy + (0, 1)], axis=1)       # (n, 4, 2)
-                for tri_c in ([0, 1, 2], [0, 2, 3]):
-                    srcs.append(c[:, tri_c])
-                    dsts.append(c[:, tri_c] + shift[:, None])
-                    dzs.append(np.repeat(pdz[:, None], 3, axis=1))
-                    keys.append(np.full(len(txy), fk, np.int32))
-                num_cp += len(txy)
-        cat = lambda xs, shape: np.concatenate(xs) if xs else np.zeros(shape)  # noqa: E731
-        return (cat(srcs, (0, 3, 2)), cat(dsts, (0, 3, 2)), cat(dzs, (0, 3)), cat(keys, (0,)).astype(np.int32),
-                num_cp)
-
-    def _warp_face(self, lay: LightLayout, fi: int, m: int, u: float, keys: list[float]) -> np.ndarray:
-        """(S, S) map of light sample m, face fi at shutter time u, warped from the bracketing keys."""
-        s = self.size
-        target = self.sample(u)
-        tface = lay.faces[fi]
-        a, t = self._face_transform(lay, tface, m, target)
-        hi = int(np.searchsorted(keys, u, side="left"))
-        lo = max(hi - 1, 0)
-        hi = min(hi, len(keys) - 1)
-        out = wp.full(s * s, wp.inf, dtype=float, device=self.device)
-        proj = tface.projection(s)
-        for ki in sorted({lo, hi}):
-            _key, key_dev = self._key(lay, ki, keys[ki])
-            t0 = time.perf_counter()
-            src, dst, dz, kf, ncp = self._warp_prims(lay, (lay.row, ki), target, a, t, tface)
-            self._count("shadow_control_points", ncp)
-            boxes = np.concatenate([dst.min(axis=1), dst.max(axis=1)], axis=1) if len(dst) else np.zeros((0, 4))
-            keep = np.isfinite(boxes).all(axis=1) & (boxes[:, 2] >= 0) & (boxes[:, 3] >= 0) & (boxes[:, 0] <= s) \
-                & (boxes[:, 1] <= s)
-            bins = bin_entries(proj, boxes, keep, WARP_TILE)
-            dev = self.device
-            args = [s, bins.tiles_x, WARP_TILE, key_dev,
-                    device_array(src.reshape(-1, 2).astype(np.float32), wp.vec2, dev),
-                    device_array(dst.reshape(-1, 2).astype(np.float32), wp.vec2, dev),
-                    device_array(dz.astype(np.float32), wp.vec3, dev),
-                    device_array(kf.astype(np.int32), int, dev),
-                    device_array(bins.tile_offsets, int, dev),
-                    device_array(bins.tile_entries.astype(np.int32), int, dev)]
-            launch_pixels(warp_texels, s * s, lambda first, _n: args + [first, out], dev, self.threads)
-            self._add_time("shadow_warp", time.perf_counter() - t0)
-            self._warp_seconds_per_texel = (time.perf_counter() - t0) / (s * s)
-        return out.numpy().reshape(s, s)
+    def _render_slot(self, lay: LightLayout, fi: int, m: int, items: list[tuple[int, float]],
+                     laid: TexelMajorLayout, threads: int | None) -> None:
+        """Render face fi, light sample m at the items' instants (map index, time) straight into
+        its texel-major slot: the still triangles' base map under each instant, the moving
+        triangles of every instant splatted in one launch; then flag the slot's varying texels
+        (its other instants, if any, are in place already)."""
+        slot = laid.locate(items[0][0])[0]
+        instants = [laid.locate(idx)[1] for idx, _u in items]
+        if lay.static:   # nothing moves in the light's view: one map serves every instant
+            laid.fill(slot, instants, self._direct_depth(lay, fi, m, 0.5, threads))
+            laid.flag(slot)
+            return
+        self._count("shadow_maps_rendered", len(items))
+        still = self._still_triangles(lay)
+        base = self._bases.get((lay.row, m, fi)) if still.any() else None
+        laid.fill(slot, instants, base)
+        moving = None if base is None else ~still
+        geo = None
+        if moving is None or moving.any():
+            samples = [self.sample(u) for _idx, u in items]
+            transforms = [self._face_transform(lay, lay.faces[fi], m, smp) for smp in samples]
+            geo = self._raster.instants_geometry(transforms, samples, instants, laid.times, self._cast(lay, moving))
+        whole = len(set(instants)) == laid.times   # every instant over the same base: flags from the splat
+        if geo is None:
+            if not whole:
+                laid.flag(slot)
+            else:
+                laid.done(slot, laid.target(slot, "cpu"), laid.flags(slot, "cpu"))   # all base: none vary
+            return
+        target = laid.target(slot, self.device)
+        touched = laid.flags(slot, self.device) if whole else self._raster.no_flags
+        self._raster.splat_instants(lay.faces[fi], geo, laid.times, target, touched, threads)
+        laid.done(slot, target, touched)
+        if not whole:
+            laid.flag(slot)
 
     # ------------------------------------------------------------------------------ assembly
     def data(self, times: list[float], texel_major: bool = False) -> ShadowData | None:
@@ -484,14 +354,20 @@ class ShadowMaps:
                texel_major: bool = False) -> ShadowData:
         """Maps at `times` (B shutter instants); frame_instants: how many instants the frame
         builds maps for in all (auto mode weighs warping against rendering over all of them);
-        texel_major (B > 1): each face laid out for spans of time as soon as it is complete."""
+        texel_major (B > 1): the maps rendered straight into the layout spans of time read."""
         t_start = time.perf_counter()
         s = self.size
         total = sum(len(lay.offsets) * len(lay.faces) for lay in self.layouts) * len(times)
-        maps = np.empty((total, s, s), np.float32)
         faces = np.zeros((total, FACE_WIDTH), np.float32)
         info = np.full((max(self.num_lights, 1), 3), -1, np.int32)
-        laid = TexelMajorLayout(maps, len(times)) if texel_major and len(times) > 1 else None
+        laid = TexelMajorLayout(total // len(times), s, len(times)) if texel_major and len(times) > 1 else None
+        maps = np.empty((total, s, s), np.float32) if laid is None else None
+
+        def put(idx: int, depth: np.ndarray) -> None:
+            if laid is None:
+                maps[idx] = depth
+            else:
+                laid.put(idx, depth)
         idx = 0
         direct_jobs = []   # per light: its maps to render in parallel, all lights' at once below
         for lay in self.layouts:
@@ -507,16 +383,35 @@ class ShadowMaps:
             if keys is not None:
                 self.counters["shadow_keys"] = max(self.counters.get("shadow_keys", 0), len(keys))
             jobs: list[tuple[int, int, int, float]] = []   # direct maps, rendered in parallel below
+            done: set[int] = set()
+            if lay.warp is None and laid is not None:
+                # auto, texel-major: the light's first face at every instant, rendered as its direct
+                # faces would be, decides (its still base rendered beforehand: paid whatever the mode)
+                still = self._still_triangles(lay)
+                if still.any():
+                    self._base(lay, 0, 0, self.sample(times[0]), still, None)
+                first = [(idx + b * len(lay.faces), u) for b, u in enumerate(times)]
+                t0 = time.perf_counter()
+                self._render_slot(lay, 0, 0, first, laid, None)
+                seconds = time.perf_counter() - t0
+                self._add_time("shadow_render", seconds)
+                done = {i for i, _u in first}
+                n = frame_instants * len(lay.offsets) * len(lay.faces) - len(first)
+                lay.warp = self._warp_pays(lay, seconds / len(first), n)
+                self.counters.setdefault("shadow_warped_lights", []).append(int(lay.warp))
+                keys = self._key_times(lay) if lay.warp else None
             for m in range(len(lay.offsets)):
                 for u in times:
                     for fi, face in enumerate(lay.faces):
                         queued = keys is None and lay.warp is not None
-                        if queued:
+                        if idx in done:
+                            pass
+                        elif queued:
                             jobs.append((idx, fi, m, u))
                         elif keys is None:
                             t0 = time.perf_counter()
                             bases = self.counters.get("shadow_maps_still_base", 0)
-                            maps[idx] = self._direct_depth(lay, fi, m, u)
+                            put(idx, self._direct_depth(lay, fi, m, u))
                             self._add_time("shadow_render", time.perf_counter() - t0)
                             rendered += 1
                             # auto: the light's first map decides (the first over a still base
@@ -528,10 +423,8 @@ class ShadowMaps:
                                 if lay.warp:
                                     keys = self._key_times(lay)
                         else:
-                            maps[idx] = self._warp_face(lay, fi, m, u, keys)
+                            put(idx, self._warp_face(lay, fi, m, u, keys))
                             self._count("shadow_maps_warped", 1)
-                        if laid is not None and not queued:   # rendered (or warped) just now
-                            laid.rendered(idx)
                         faces[idx, 0:9] = face.rotation.ravel()
                         faces[idx, 9:12] = lay.offsets[m]
                         faces[idx, 12:16] = face.window
@@ -541,7 +434,7 @@ class ShadowMaps:
                         faces[idx, 19:22] = face_scales(face.window, s)
                         idx += 1
             direct_jobs.append((lay, jobs))
-        self._render_direct(direct_jobs, maps, laid)
+        self._render_direct(direct_jobs, put, laid)
         if laid is not None:
             laid.finish()
         self._add_time("shadows", time.perf_counter() - t_start)
