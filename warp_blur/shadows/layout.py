@@ -4,6 +4,7 @@ patterns, cube faces and fitted frusta."""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -163,8 +164,23 @@ def face_varying(stack: np.ndarray) -> np.ndarray:
 
 
 def light_frame(row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(origin (3,), axes (3, 3): rows = the light's local x, y, z in camera space) from a table row."""
-    origin = np.asarray(row[4:7], np.float64)
+    """(origin (3,), axes (3, 3): rows = the light's local x, y, z in camera space) from a table row
+    (read-only arrays, remembered per row: a frame asks for the same few rows tens of times, and
+    NumPy's cost on 3-vectors is its per-call overhead)."""
+    row = np.asarray(row)
+    return _light_frame(row.tobytes(), row.dtype.str)
+
+
+@functools.lru_cache(maxsize=256)
+def _light_frame(data: bytes, dtype: str) -> tuple[np.ndarray, np.ndarray]:
+    origin, axes = _compute_light_frame(np.frombuffer(data, dtype))
+    origin.flags.writeable = False
+    axes.flags.writeable = False
+    return origin, axes
+
+
+def _compute_light_frame(row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    origin = np.array(row[4:7], np.float64)
     x = np.asarray(row[10:13], np.float64)
     y = np.asarray(row[13:16], np.float64)
     if np.linalg.norm(x) < 1e-30 or np.linalg.norm(y) < 1e-30:
