@@ -94,7 +94,7 @@ def test_instants_splatted_together_equal_each_instant_splatted_alone(perspectiv
         samples.append(Sample(moved, np.ones(t, bool), np.zeros((0, 18), np.float32)))
         transforms.append((np.eye(3), np.zeros(3)))
     base = raster.depth_over(np.eye(3), np.zeros(3), face, samples[0], ~visible, None, 1)
-    geo = raster.instants_geometry(transforms, samples, list(range(times)), times, visible)
+    geo = raster.instants_geometry(transforms, samples, list(range(times)), times, visible, face)
     laid = np.ascontiguousarray(np.repeat(base[..., None], times, axis=2))
     target = wp.array(laid.ravel(), dtype=float, device="cpu")
     touched = wp.zeros(SIZE * SIZE, dtype=wp.uint8, device="cpu")
@@ -107,3 +107,80 @@ def test_instants_splatted_together_equal_each_instant_splatted_alone(perspectiv
     flags = touched.numpy().reshape(SIZE, SIZE).astype(bool)
     assert varies.any() and not (varies & ~flags).any()
     assert not flags[np.isinf(together).all(axis=2)].any()   # nothing drew where every instant is empty
+
+
+def closed_scene(seed: int, light_inside: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Interpenetrating closed meshes (spheres and boxes, one wound inward) in front of the face,
+    and an open sheet behind them: (V, 3) positions, (T, 3) triangles, (T,) object ids.
+    light_inside: one more box around the eye (the light inside a closed instance)."""
+    import trimesh
+    rng = np.random.default_rng(seed)
+    parts = [trimesh.creation.icosphere(subdivisions=2, radius=rng.uniform(0.5, 1.5)) if i % 2 else
+             trimesh.creation.box(extents=rng.uniform(0.5, 2.0, 3)) for i in range(6)]
+    for mesh in parts:
+        mesh.apply_transform(trimesh.transformations.random_rotation_matrix(rng.random(3)))
+        mesh.apply_translation([rng.uniform(-1.5, 1.5), rng.uniform(-1.5, 1.5), rng.uniform(-8.0, -4.0)])
+    parts[2].invert()   # wound inward: its volume is negative, its back faces face the other way
+    parts.append(trimesh.Trimesh([[-3, -3, -9.5], [3, -3, -9.5], [3, 3, -9.5], [-3, 3, -9.5]], [[0, 1, 2], [0, 2, 3]]))
+    if light_inside:
+        parts.append(trimesh.creation.box(extents=(1.0, 1.0, 1.0)))
+    positions, tris, objects, start = [], [], [], 0
+    for i, mesh in enumerate(parts):
+        positions.append(np.asarray(mesh.vertices, np.float64))
+        tris.append(np.asarray(mesh.faces, np.int32) + start)
+        objects.append(np.full(len(mesh.faces), i, np.int32))
+        start += len(mesh.vertices)
+    return np.concatenate(positions), np.concatenate(tris), np.concatenate(objects)
+
+
+@pytest.mark.parametrize("perspective", [False, True])
+@pytest.mark.parametrize("light_inside", [False, True])
+def test_back_faces_of_closed_instances_change_no_texel(perspective, light_inside):
+    """Leaving out the back faces of closed instances the light is outside of (cull_signs) changes
+    no texel of a map, alone or over a base, or of a face's instants splatted together: from
+    outside a closed surface the nearest hit is a front face. An inward-wound instance and the
+    light inside a box are handled; the sheet (open) is always kept."""
+    from warp_blur.raster.culling import instance_volume_sign
+    positions, tris, objects = closed_scene(5, light_inside)
+    t = len(tris)
+    tables = TriangleTables(tris, np.zeros(t, np.int32), np.zeros(t, np.int32), np.zeros((3 * t, 3), np.float32), "cpu")
+    closed = objects != 6   # all but the sheet
+    face = Face(np.eye(3), (-0.6, -0.6, 0.6, 0.6), False, 0.1) if perspective else \
+        Face(np.eye(3), (-3.0, -3.0, 3.0, 3.0), True, -1e30)
+    plain = FaceRasterizer(tables, tris, SIZE, "cpu")
+    culling = FaceRasterizer(tables, tris, SIZE, "cpu", objects)
+    samples = []
+    mover = np.unique(tris[objects == 1])   # one sphere's vertices, moving over the instants
+    for b in range(3):
+        moved = positions.copy()
+        moved[mover] += (0.3 * b, 0.0, 0.1 * b)
+        samples.append(Sample(moved, np.ones(t, bool), np.zeros((0, 18), np.float32)))
+    culling.object_sign = instance_volume_sign(np.stack([s.positions for s in samples]), tris, objects, closed,
+                                               -np.inf, np.inf)
+    assert (culling.object_sign[:6] != 0).all() and culling.object_sign[2] == -culling.object_sign[0]
+    signs = culling.cull_signs(positions[None], [0], face).numpy()
+    assert (signs[objects == 6] == 0).all() and (signs[objects < 6] != 0).all()
+    if light_inside:
+        assert (signs[objects == 7] == 0).all() == perspective   # a distant light is outside the box
+    a, shift = np.eye(3), np.zeros(3)
+    base = plain.depth_over(a, shift, face, samples[0], objects != 1, None, 1)
+    assert np.isfinite(base).mean() > 0.2   # the scene really covers the face
+    for s in samples:
+        np.testing.assert_array_equal(culling.depth_over(a, shift, face, s, None, None, 2),
+                                      plain.depth_over(a, shift, face, s, None, None, 2))
+        np.testing.assert_array_equal(culling.depth_over(a, shift, face, s, objects == 1, base, 1),
+                                      plain.depth_over(a, shift, face, s, objects == 1, base, 1))
+    together = []
+    for raster in (plain, culling):
+        prepared = raster.instants_geometry([(a, shift)] * 3, samples, [0, 1, 2], 3, None, face)
+        target = wp.array(np.repeat(base[..., None], 3, axis=2).ravel(), dtype=float, device="cpu")
+        raster.splat_instants(face, prepared, 3, target, raster.no_flags, 2)
+        together.append(target.numpy())
+    np.testing.assert_array_equal(together[0], together[1])
+    if light_inside and perspective:
+        return   # the box around the light hides the rest (its inner walls are kept: maps equal)
+    # the signs are what the splat reads: flipped, the front faces go and the far sides show
+    culling.object_sign = -culling.object_sign
+    farther = culling.depth_over(a, shift, face, samples[0], None, None, 1) > plain.depth_over(a, shift, face,
+                                                                                                samples[0], None, None, 1)
+    assert farther.mean() > 0.05

@@ -120,6 +120,7 @@ def clipped_box(view: View, a: wp.vec3, b: wp.vec3, c: wp.vec3, margin: float) -
 
 @wp.kernel(enable_backward=False)
 def splat_shadow_depth(view: View, geo: Geometry, row_lo: int, row_hi: int, stride: int,
+                       cull: wp.array(dtype=float), num_tris: int,
                        # in/out
                        depth: wp.array(dtype=float), touched: wp.array(dtype=wp.uint8)):
     """depth[texel * stride + k] = min(that, entry's depth there) for entry tid (static, in face
@@ -130,12 +131,26 @@ def splat_shadow_depth(view: View, geo: Geometry, row_lo: int, row_hi: int, stri
     layout lookups read); touched (when not empty) gets 1 at every texel an entry covers (over a
     face filled with the same base at every instant, texels never touched are the same at every
     instant). The box is computed here (clipped_box), so a face costs the host no binning.
-    Launches for disjoint row bands may run in parallel."""
+    Launches for disjoint row bands may run in parallel. cull (when not empty), at instant k and
+    triangle t [k * num_tris + t]: the sign of the triangle's closed instance where the light is
+    outside it (0: keep), so a back face of it (facing with that sign) is left out: it never holds
+    a depth (shadows/direct.py, FaceRasterizer.cull_signs)."""
     e = wp.tid()
     vi = geo.tri_vertices[geo.entry_tri[e]]
     a = entry_vertex(geo, e, vi[0], 0.0)
     b = entry_vertex(geo, e, vi[1], 0.0)
     c = entry_vertex(geo, e, vi[2], 0.0)
+    if cull.shape[0] > 0:
+        sign = cull[geo.entry_k0[e] * num_tris + geo.entry_tri[e]]
+        if sign != 0.0:
+            # facing seen from the light: det(a, b, c) with the light at the origin, -n_z from +z
+            facing = float(0.0)
+            if view.ortho != 0:
+                facing = -wp.cross(b - a, c - a)[2]
+            else:
+                facing = wp.dot(a, wp.cross(b, c))
+            if facing * sign > 0.0:
+                return
     box = clipped_box(view, a, b, c, 1.0)
     if not (box[0] <= box[2]):
         return

@@ -146,7 +146,8 @@ class FrameContext:
             return None
         scene = self.scene
         sm = ShadowMaps(self.tables, scene.tri_vertices, scene.tri_object, sample_at,
-                        self.shadow_options(), self.device, self.settings.threads, self.timings, self.counters)
+                        self.shadow_options(), self.device, self.settings.threads, self.timings, self.counters,
+                        scene.tri_closed)
         return sm if sm.active else None
 
     def snapshot_fraction(self, snapshot: Snapshot) -> float:

@@ -51,9 +51,44 @@ class FaceRasterizer:
     """Renders S×S faces of the frame's triangles (tables and (T, 3) vertex indices) given a
     face transform (A (3, 3), t (3,): face-space q = A p + t of camera-space p)."""
 
-    def __init__(self, tables: TriangleTables, tri_vertices: np.ndarray, size: int, device: str) -> None:
+    def __init__(self, tables: TriangleTables, tri_vertices: np.ndarray, size: int, device: str,
+                 tri_object: np.ndarray | None = None) -> None:
         self.tables, self.tri_vertices, self.size, self.device = tables, tri_vertices, size, device
         self.no_flags = wp.zeros(0, dtype=wp.uint8, device=device)
+        self.no_cull = wp.zeros(0, dtype=float, device=device)
+        self.tri_object = tri_object
+        #: (objects,) the sign of each closed opaque instance's volume over the frame (0: not
+        #: closed, or not the same sign throughout), set by the frame's maps (cull_signs)
+        self.object_sign: np.ndarray | None = None
+        self._vertex_object: np.ndarray | None = None
+
+    def cull_signs(self, positions: np.ndarray, instants: list[int], face: Face) -> wp.array:
+        """(times * T,) per instant b of positions (times, V, 3), face space, and triangle t, row
+        b T + t: the volume sign of t's closed instance where the light is outside it at b (every
+        vertex of the instance in front of the face's near plane; a distant light is outside
+        everything), else 0. Along any ray from a light outside a closed surface the nearest hit is
+        a front face, so the splat leaves out the back faces (culling.hidden_back_faces' argument,
+        the light as the eye): no texel changes. Empty when nothing is closed."""
+        sign = self.object_sign
+        if sign is None or not sign.any() or self.tri_object is None:
+            return self.no_cull
+        if self._vertex_object is None:
+            vertex_object = np.full(max(positions.shape[1], int(self.tri_vertices.max(initial=-1)) + 1), -1, np.int64)
+            vertex_object[self.tri_vertices.ravel()] = np.repeat(self.tri_object, 3)
+            self._vertex_object = vertex_object
+        num_tris = len(self.tri_vertices)
+        out = np.zeros(positions.shape[0] * num_tris, np.float32)
+        tri_sign = sign[self.tri_object]
+        for b in set(instants):
+            if face.ortho:
+                out[b * num_tris:(b + 1) * num_tris] = tri_sign
+                continue
+            near = -positions[b, :len(self._vertex_object), 2] < face.near   # vertices not in front
+            crossing = np.zeros(len(sign), bool)
+            objects = self._vertex_object[:positions.shape[1]][near]
+            crossing[objects[objects >= 0]] = True
+            out[b * num_tris:(b + 1) * num_tris] = np.where(crossing[self.tri_object], 0.0, tri_sign)
+        return wp.array(out, dtype=float, device=self.device)
 
     def _face_geometry(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, subset: np.ndarray | None):
         """(projection, face-space positions (V, 3), visible triangles (N,) (of `subset`, a (T,)
@@ -86,23 +121,28 @@ class FaceRasterizer:
         order-free). Depth-only maps are splatted rather than gathered per texel: a texel then
         tests the triangles that cover it, not its tile's whole list; each triangle finds its own
         box in the kernel, so the host neither bounds nor bins."""
-        proj, _q, tris, geo = self._face_geometry(a, t, face, s, subset)
+        proj, q, tris, geo = self._face_geometry(a, t, face, s, subset)
         view = make_view(proj, 1, None, TILE_SIZE)
         view.near = face.near
         if base is None:
             depth = wp.full(self.size * self.size, wp.inf, dtype=float, device=self.device)
         else:
             depth = wp.array(base.ravel(), dtype=float, device=self.device)
+        cull = self.cull_signs(q[None], [0], face)
+        num_tris = len(self.tri_vertices)
         launch_row_bands(splat_shadow_depth, len(tris), self.size,
-                         lambda y0, y1: [view, geo, y0, y1, 1, depth, self.no_flags], self.device, threads)
+                         lambda y0, y1: [view, geo, y0, y1, 1, cull, num_tris, depth, self.no_flags], self.device,
+                         threads)
         return depth.numpy().reshape(self.size, self.size)
 
     def instants_geometry(self, transforms: list[tuple[np.ndarray, np.ndarray]], samples: list[Sample],
-                          instants: list[int], times: int, subset: np.ndarray | None) -> Geometry | None:
+                          instants: list[int], times: int, subset: np.ndarray | None,
+                          face: Face) -> tuple[Geometry, wp.array] | None:
         """Geometry of a face at several instants for splat_shadow_depth with stride `times`:
         positions (times, V, 3) in face space (instant b = instants[i] from transforms[i] (A, t)
         and samples[i]; others unused), one static entry per triangle visible at an instant (of
-        `subset`) with entry_k0 = entry_k1 = its instant. None when no triangle is visible."""
+        `subset`) with entry_k0 = entry_k1 = its instant, and face's cull_signs. None when no
+        triangle is visible."""
         num_v = max(len(s.positions) for s in samples)
         pos = np.zeros((times, max(num_v, 1), 3), np.float32)
         tris, ks = [], []
@@ -118,17 +158,20 @@ class FaceRasterizer:
         if len(tri) == 0:
             return None
         k = np.concatenate(ks)
-        return make_geometry(self.tables, pos, None, tri, k, k)
+        return make_geometry(self.tables, pos, None, tri, k, k), self.cull_signs(pos, instants, face)
 
-    def splat_instants(self, face: Face, geo: Geometry, times: int, target: wp.array, touched: wp.array,
-                       threads: int | None) -> None:
-        """Splat instants_geometry's entries into target (S * S * times,): texel-major, each
-        texel's `times` depths side by side, over what it holds (the nearer depth wins); touched
-        (S * S,) uint8 gets 1 where an entry covers a texel at some instant."""
+    def splat_instants(self, face: Face, prepared: tuple[Geometry, wp.array], times: int, target: wp.array,
+                       touched: wp.array, threads: int | None) -> None:
+        """Splat instants_geometry's entries (geometry and cull signs) into target (S * S * times,):
+        texel-major, each texel's `times` depths side by side, over what it holds (the nearer depth
+        wins); touched (S * S,) uint8 gets 1 where an entry covers a texel at some instant."""
+        geo, cull = prepared
         view = make_view(face.projection(self.size), 1, None, TILE_SIZE)
         view.near = face.near
+        num_tris = len(self.tri_vertices)
         launch_row_bands(splat_shadow_depth, geo.entry_tri.shape[0], self.size,
-                         lambda y0, y1: [view, geo, y0, y1, times, target, touched], self.device, threads)
+                         lambda y0, y1: [view, geo, y0, y1, times, cull, num_tris, target, touched], self.device,
+                         threads)
 
     def gather(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, threads: int | None,
                subset: np.ndarray | None = None):

@@ -30,6 +30,7 @@ from ..usd.lights import DISK, RECT, SPHERE
 from ..core.log import warn_once
 from ..core.parallel import default_threads, map_threads
 from ..kernels.shadow_lookup import FACE_WIDTH
+from ..raster.culling import instance_volume_sign
 from .casters import light_casters
 from .direct import STILL_PROBES, FaceRasterizer, still_triangles
 from .layout import (FAR, Face, LightLayout, Sample, ShadowData, ShadowOptions, fit_faces, light_frame,
@@ -42,6 +43,8 @@ from .warped import KeyWarping
 #: measurement once it has warped a map. `--shadows auto` weighs it against the measured cost of
 #: rendering the light's first map directly.
 WARP_SECONDS_PER_TEXEL = 3.5e-7
+#: shutter times at which closed instances' volume signs must agree for their back faces to be culled
+SIGN_PROBES = (0.0, 0.5, 1.0)
 #: a key map (depth, triangle and barycentrics gathered per texel) costs this many direct maps
 KEY_MAP_COST = 1.75
 
@@ -51,7 +54,8 @@ class ShadowMaps(KeyWarping):
 
     def __init__(self, tables: TriangleTables, tri_vertices: np.ndarray, tri_object: np.ndarray,
                  sample_at: Callable[[float], Sample], options: ShadowOptions,
-                 device: str, threads: int | None, timings: dict, counters: dict) -> None:
+                 device: str, threads: int | None, timings: dict, counters: dict,
+                 tri_closed: np.ndarray | None = None) -> None:
         self.tables = tables
         self.tri_vertices = tri_vertices
         self.tri_object = tri_object
@@ -69,7 +73,7 @@ class ShadowMaps(KeyWarping):
         self._binned: ShadowData | None = None
         self._still: dict[int, np.ndarray] = {}
         self._casters: dict[int, np.ndarray | None] = {}   # per light row: (T,) triangles that may cast
-        self._raster = FaceRasterizer(tables, tri_vertices, options.size, device)
+        self._raster = FaceRasterizer(tables, tri_vertices, options.size, device, tri_object)
         self._lock = threading.Lock()
         self._bases: dict[tuple[int, int, int], np.ndarray] = {}
         self.size = options.size
@@ -84,6 +88,14 @@ class ShadowMaps(KeyWarping):
             return
         t0 = time.perf_counter()
         self._plan(rows)
+        if tri_closed is not None and tri_closed.any() and len(tri_object):
+            # closed instances' volume signs at shutter open, centre and close (camera space: a sign
+            # is the same in every light's frame; it changes only through a degenerate, flat mesh):
+            # their back faces are left out of the maps
+            probes = [self.sample(u) for u in SIGN_PROBES]
+            if all(p.positions.shape == probes[0].positions.shape for p in probes):
+                self._raster.object_sign = instance_volume_sign(
+                    np.stack([p.positions for p in probes]), tri_vertices, tri_object, tri_closed, -np.inf, np.inf)
         self._add_time("shadow_setup", time.perf_counter() - t0)
 
     # ------------------------------------------------------------------------------ layout
@@ -300,7 +312,8 @@ class ShadowMaps(KeyWarping):
         if moving is None or moving.any():
             samples = [self.sample(u) for _idx, u in items]
             transforms = [self._face_transform(lay, lay.faces[fi], m, smp) for smp in samples]
-            geo = self._raster.instants_geometry(transforms, samples, instants, laid.times, self._cast(lay, moving))
+            geo = self._raster.instants_geometry(transforms, samples, instants, laid.times, self._cast(lay, moving),
+                                                 lay.faces[fi])
         whole = len(set(instants)) == laid.times   # every instant over the same base: flags from the splat
         if geo is None:
             if not whole:
