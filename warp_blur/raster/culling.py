@@ -1,4 +1,5 @@
-"""Back faces that cannot show, dropped before the camera's visibility (never from shadow maps).
+"""Back faces that cannot show, dropped before the camera's visibility (shadow maps leave theirs out
+with instance_volume_sign too, the light as the eye: shadows/direct.py, FaceRasterizer.cull_signs).
 
 A triangle of a closed, consistently oriented, opaque surface (scene.tri_closed) is hidden by the
 same surface's front faces wherever it faces away from the eye, provided the eye is outside the
