@@ -223,3 +223,41 @@ def test_a_frame_too_large_for_memory_is_refused_before_any_work(tmp_path, scene
                     settings=wb.RenderSettings(method="velocity", frame_memory_limit_mb=100))
     from warp_blur.core.memory import frame_bytes
     assert frame_bytes("analytic", 100, 100, 2) == 4 * frame_bytes("analytic", 100, 100, 1)
+
+
+CUBE_STAGE = """#usda 1.0
+(
+    startTimeCode = 1
+    endTimeCode = 1
+    upAxis = "Y"
+)
+def Xform "World"
+{
+    def Camera "Cam"
+    {
+        double3 xformOp:translate = (0, 0, 8)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }
+    def Cube "Box"
+    {
+        SIZE
+    }
+}
+"""
+
+
+def test_a_gprim_dimension_of_an_unknown_type_falls_back_to_the_schemas_with_a_warning(tmp_path):
+    """`xdouble size = 1` (a type USD does not know) reads as an unregistered value: the cube takes
+    the schema's fallback size (2), as if nothing were authored, and a warning names the attribute
+    (the fuzz soak found it as a traceback through the batch's frame error)."""
+    images = {}
+    for name, size in (("bad", "xdouble size = 1"), ("fallback", "")):
+        path = tmp_path / f"{name}.usda"
+        path.write_text(CUBE_STAGE.replace("SIZE", size))
+        log.reset()
+        result = wb.render(str(path), frame=1, method="accumulation", resolution=(32, 24), samples=1)
+        images[name] = result.rgba
+        if name == "bad":
+            assert any("/World/Box.size" in w and "not a number" in w for w in result.stats["warnings"])
+    assert images["fallback"][..., 3].mean() > 0.05   # the cube is there
+    np.testing.assert_array_equal(images["bad"], images["fallback"])

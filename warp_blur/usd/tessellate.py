@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from pxr import Usd, UsdGeom
 
+from ..core.log import warn_once
+
 
 def triangulate(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray | None = None,
                 left_handed: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -75,40 +77,57 @@ def tessellate_gprim(prim: Usd.Prim, time: Usd.TimeCode) -> tuple | None:
     return pts, tris, smooth, np.arange(len(tris)), None
 
 
+def _number(attr: Usd.Attribute, time: Usd.TimeCode) -> float:
+    """A gprim's dimension at `time`. A value that is no real number (an attribute authored with a
+    type USD does not know, such as `xdouble size`, reads as an unregistered value) gives the
+    schema's fallback, with a warning once per attribute."""
+    value = attr.Get(time)
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        prim = attr.GetPrim()
+        definition = Usd.SchemaRegistry().FindConcretePrimDefinition(prim.GetTypeName())
+        fallback = definition.GetAttributeFallbackValue(attr.GetName()) if definition else None
+        fallback = 1.0 if fallback is None else float(fallback)
+        warn_once(f"not-a-number:{attr.GetPath()}",
+                  f"{attr.GetPath()}: {type(value).__name__} is not a number; using {fallback:g}")
+        return fallback
+
+
 def _tessellate(prim: Usd.Prim, time: Usd.TimeCode) -> tuple[np.ndarray, np.ndarray, bool] | None:
     import trimesh   # imported where used: it costs ~0.6 s at start-up
 
     mesh: "trimesh.Trimesh"
     smooth = False
     if prim.IsA(UsdGeom.Cube):   # USD's own topology, so per-face and per-vertex primvars line up
-        size = float(UsdGeom.Cube(prim).GetSizeAttr().Get(time))
+        size = _number(UsdGeom.Cube(prim).GetSizeAttr(), time)
         tris, _ = triangulate(np.full(6, 4), CUBE_INDICES)
         return CUBE_POINTS * size, tris, False
     elif prim.IsA(UsdGeom.Sphere):
-        r = float(UsdGeom.Sphere(prim).GetRadiusAttr().Get(time))
+        r = _number(UsdGeom.Sphere(prim).GetRadiusAttr(), time)
         mesh = trimesh.creation.icosphere(subdivisions=3, radius=r)
         smooth = True
     elif prim.IsA(UsdGeom.Cylinder):
         g = UsdGeom.Cylinder(prim)
-        mesh = trimesh.creation.cylinder(radius=float(g.GetRadiusAttr().Get(time)),
-                                         height=float(g.GetHeightAttr().Get(time)), sections=32)
+        mesh = trimesh.creation.cylinder(radius=_number(g.GetRadiusAttr(), time),
+                                         height=_number(g.GetHeightAttr(), time), sections=32)
         mesh.apply_transform(_axis_rotation(g.GetAxisAttr().Get(time)))
     elif prim.IsA(UsdGeom.Cone):
         g = UsdGeom.Cone(prim)
-        h = float(g.GetHeightAttr().Get(time))
-        mesh = trimesh.creation.cone(radius=float(g.GetRadiusAttr().Get(time)), height=h, sections=32)
+        h = _number(g.GetHeightAttr(), time)
+        mesh = trimesh.creation.cone(radius=_number(g.GetRadiusAttr(), time), height=h, sections=32)
         mesh.apply_translation((0, 0, -h / 2))
         mesh.apply_transform(_axis_rotation(g.GetAxisAttr().Get(time)))
     elif prim.IsA(UsdGeom.Capsule):
         g = UsdGeom.Capsule(prim)
-        mesh = trimesh.creation.capsule(height=float(g.GetHeightAttr().Get(time)),
-                                        radius=float(g.GetRadiusAttr().Get(time)), count=[16, 16])
+        mesh = trimesh.creation.capsule(height=_number(g.GetHeightAttr(), time),
+                                        radius=_number(g.GetRadiusAttr(), time), count=[16, 16])
         mesh.apply_translation(-mesh.bounds.mean(axis=0))
         mesh.apply_transform(_axis_rotation(g.GetAxisAttr().Get(time)))
         smooth = True
     elif prim.IsA(UsdGeom.Plane):
         g = UsdGeom.Plane(prim)
-        w, ln = float(g.GetWidthAttr().Get(time)) / 2, float(g.GetLengthAttr().Get(time)) / 2
+        w, ln = _number(g.GetWidthAttr(), time) / 2, _number(g.GetLengthAttr(), time) / 2
         pts = np.array([[-w, -ln, 0], [w, -ln, 0], [w, ln, 0], [-w, ln, 0]], np.float64)
         tris = np.array([[0, 1, 2], [0, 2, 3]], np.int32)
         axis = g.GetAxisAttr().Get(time)
