@@ -11,7 +11,7 @@ import pytest
 import warp_blur as wb
 from warp_blur.core import log
 
-STAGE = """#usda 1.0
+PRELUDE = """#usda 1.0
 (
     startTimeCode = 1
     endTimeCode = 1
@@ -24,7 +24,9 @@ def Xform "World"
         double3 xformOp:translate = (0, 0, 5)
         uniform token[] xformOpOrder = ["xformOp:translate"]
     }
-    def DistantLight "Sun"
+"""
+
+STAGE = PRELUDE + """    def DistantLight "Sun"
     {
         color3f inputs:color = LIGHT_COLOR
         float inputs:intensity = LIGHT_INTENSITY
@@ -225,20 +227,7 @@ def test_a_frame_too_large_for_memory_is_refused_before_any_work(tmp_path, scene
     assert frame_bytes("analytic", 100, 100, 2) == 4 * frame_bytes("analytic", 100, 100, 1)
 
 
-CUBE_STAGE = """#usda 1.0
-(
-    startTimeCode = 1
-    endTimeCode = 1
-    upAxis = "Y"
-)
-def Xform "World"
-{
-    def Camera "Cam"
-    {
-        double3 xformOp:translate = (0, 0, 8)
-        uniform token[] xformOpOrder = ["xformOp:translate"]
-    }
-    def Cube "Box"
+CUBE_STAGE = PRELUDE + """    def Cube "Box"
     {
         SIZE
     }
