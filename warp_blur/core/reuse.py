@@ -32,13 +32,7 @@ def reused_empty(shape: tuple[int, ...], dtype, holder: object) -> wp.array:
                 array = _kept.pop(i)[1]
                 break
     if array is None:
-        import numpy as np, os
-        if os.environ.get("WB_HUGE") == "1":
-            host = np.empty(key[0], np.float32 if dtype is float else np.uint8)
-            array = wp.array(host, dtype=dtype, device="cpu", copy=False)
-            array._np_owner = host
-        else:
-            array = wp.empty(key[0], dtype=dtype, device="cpu")
+        array = wp.empty(key[0], dtype=dtype, device="cpu")
     weakref.finalize(holder, _keep, key, array)
     return array
 

@@ -90,15 +90,19 @@ class FaceRasterizer:
             out[b * num_tris:(b + 1) * num_tris] = np.where(crossing[self.tri_object], 0.0, tri_sign)
         return wp.array(out, dtype=float, device=self.device)
 
+    def _visible(self, s: Sample, subset: np.ndarray | None) -> np.ndarray:
+        """(N,) int32: the triangles visible at sample s (of `subset`, a (T,) mask, when given)."""
+        visible = s.tri_visible if len(s.tri_visible) else np.zeros(len(self.tri_vertices), bool)
+        if subset is not None:
+            visible = visible & subset
+        return np.flatnonzero(visible).astype(np.int32)
+
     def _face_geometry(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, subset: np.ndarray | None):
         """(projection, face-space positions (V, 3), visible triangles (N,) (of `subset`, a (T,)
         mask, when given), their geometry with one static entry each) of the face at sample s."""
         q = s.positions @ a.T + t
         proj = face.projection(self.size)
-        visible = s.tri_visible if len(s.tri_visible) else np.zeros(len(self.tri_vertices), bool)
-        if subset is not None:
-            visible = visible & subset
-        tris = np.nonzero(visible)[0].astype(np.int32)
+        tris = self._visible(s, subset)
         k = np.zeros(len(tris), np.int32)
         geo = make_geometry(self.tables, q[None], None, tris, k, k)
         return proj, q, tris, geo
@@ -148,10 +152,7 @@ class FaceRasterizer:
         tris, ks = [], []
         for (a, t), s, b in zip(transforms, samples, instants):
             pos[b, :len(s.positions)] = s.positions @ a.T + t
-            visible = s.tri_visible if len(s.tri_visible) else np.zeros(len(self.tri_vertices), bool)
-            if subset is not None:
-                visible = visible & subset
-            tri = np.flatnonzero(visible).astype(np.int32)
+            tri = self._visible(s, subset)
             tris.append(tri)
             ks.append(np.full(len(tri), b, np.int32))
         tri = np.concatenate(tris) if tris else np.zeros(0, np.int32)

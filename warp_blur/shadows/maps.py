@@ -299,9 +299,10 @@ class ShadowMaps(KeyWarping):
         (its other instants, if any, are in place already)."""
         slot = laid.locate(items[0][0])[0]
         instants = [laid.locate(idx)[1] for idx, _u in items]
+        whole = len(set(instants)) == laid.times   # every instant filled here, over the same base
         if lay.static:   # nothing moves in the light's view: one map serves every instant
             laid.fill(slot, instants, self._direct_depth(lay, fi, m, 0.5, threads))
-            laid.flag(slot)
+            laid.settle(slot, whole)
             return
         self._count("shadow_maps_rendered", len(items))
         still = self._still_triangles(lay)
@@ -314,15 +315,11 @@ class ShadowMaps(KeyWarping):
             transforms = [self._face_transform(lay, lay.faces[fi], m, smp) for smp in samples]
             geo = self._raster.instants_geometry(transforms, samples, instants, laid.times, self._cast(lay, moving),
                                                  lay.faces[fi])
-        whole = len(set(instants)) == laid.times   # every instant over the same base: flags from the splat
-        if geo is None:
-            if not whole:
-                laid.flag(slot)
-            else:
-                laid.done(slot, laid.target(slot, "cpu"), laid.flags(slot, "cpu"))   # all base: none vary
+        if geo is None:   # the base alone
+            laid.settle(slot, whole)
             return
         target = laid.target(slot, self.device)
-        touched = laid.flags(slot, self.device) if whole else self._raster.no_flags
+        touched = laid.flags(slot, self.device) if whole else self._raster.no_flags   # whole: flags from the splat
         self._raster.splat_instants(lay.faces[fi], geo, laid.times, target, touched, threads)
         laid.done(slot, target, touched)
         if not whole:

@@ -2,8 +2,8 @@
 
 Stochastic and analytic read each texel's B map instants side by side, (slots, S, S, B) float32
 (device_data.face_slots). A face's direct maps are splatted straight into that layout, all B
-instants in one pass (FaceRasterizer.splat_instants); a map made one at a time (warped, or the
-light's first in auto mode) is written into its instant's place. Nothing is laid out twice: no
+instants in one pass (FaceRasterizer.splat_instants); a map made one at a time (warped) is
+written into its instant's place. Nothing is laid out twice: no
 frame-sized instant-major copy, no transpose after the maps render.
 """
 
@@ -94,6 +94,15 @@ class TexelMajorLayout:
             if touched.shape[0] > 0:
                 self.varying[slot] = touched.numpy().reshape(self.varying[slot].shape)
         self._flagged[slot] = touched.shape[0] > 0   # else flag() compares the instants
+
+    def settle(self, slot: int, whole: bool) -> None:
+        """Flags of a slot that holds what fill() put there: no texel varies when the fill covered
+        every instant (whole), else its instants are compared (flag)."""
+        if not whole:
+            self.flag(slot)
+            return
+        self.varying[slot] = 0
+        self._flagged[slot] = True
 
     def flag(self, slot: int) -> None:
         """Set the slot's varying-texel flags by comparing its B instants (all in place)."""
