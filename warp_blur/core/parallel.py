@@ -5,14 +5,19 @@ Each pixel is computed by exactly one thread, so results do not depend on the th
 from __future__ import annotations
 
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
-from typing import Callable, Iterable
+from typing import Callable, Generic, Iterable, TypeVar
 
 import warp as wp
 
 from . import progress
 
-_pools: dict[int, ThreadPoolExecutor] = {}
+_pools: dict[tuple[str, int], ThreadPoolExecutor] = {}
+_pools_lock = threading.Lock()
+#: the pool family of the current thread: a Background job's launches get pools of their own
+_family = threading.local()
+T = TypeVar("T")
 
 #: bands per thread for pixel kernels whose cost varies strongly across the image (every pixel
 #: shaded at many instants or samples): with 4 bands per thread the slowest band left a core idle
@@ -25,9 +30,38 @@ def default_threads() -> int:
 
 
 def _pool(n: int) -> ThreadPoolExecutor:
-    if n not in _pools:
-        _pools[n] = ThreadPoolExecutor(max_workers=n, thread_name_prefix="warp_blur")
-    return _pools[n]
+    key = (getattr(_family, "name", ""), n)
+    with _pools_lock:
+        if key not in _pools:
+            _pools[key] = ThreadPoolExecutor(max_workers=n, thread_name_prefix=f"warp_blur{key[0]}")
+        return _pools[key]
+
+
+class Background(Generic[T]):
+    """fn() run on a helper thread from now on, its result (or exception) given by result().
+    Its launches and map_threads jobs use pools of their own, so they run beside the caller's
+    bands instead of queueing behind them: work with idle gaps (host set-up between short
+    launches) fills the cores the caller's passes leave idle, and the other way round."""
+
+    def __init__(self, fn: Callable[[], T], name: str) -> None:
+        self._value: T | None = None
+        self._error: BaseException | None = None
+
+        def run() -> None:
+            _family.name = "_" + name
+            try:
+                self._value = fn()
+            except BaseException as error:   # re-raised by result(), in the caller's thread
+                self._error = error
+        self._thread = threading.Thread(target=run, name=f"warp_blur_{name}", daemon=True)
+        self._thread.start()
+
+    def result(self) -> T:
+        """Wait for fn() and return what it returned (raise what it raised)."""
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self._value
 
 
 def _run_bands(kernel, device: str, threads: int, starts: range, run: Callable[[int], None]) -> None:

@@ -156,9 +156,10 @@ def render_stochastic(ctx: FrameContext) -> np.ndarray:
     s = ctx.settings
     n = s.resolved_samples
     dev = ctx.device
-    plan, geo, (static_bins, moving_bins), sh, view = prepare_motion(ctx)
-    sh.shadow_nearest = 1
+    plan, geo, (static_bins, moving_bins), shading, view = prepare_motion(ctx)
     rgba = wp.zeros((ctx.num_pixels, 4), dtype=float, device=dev)
+    sh = shading()
+    sh.shadow_nearest = 1
     subs = ctx.sub_pixel_offsets()
     max_band = max(1, SCRATCH_BYTES // (12 * n))
     lights_static = 1 if plan.lights_static else 0

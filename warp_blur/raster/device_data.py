@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import warp as wp
 
@@ -126,19 +128,26 @@ def instant_frames(lights: np.ndarray, times: int) -> np.ndarray:
 
 
 def texture_arrays(textures, device: str) -> Textures:
-    """The frame's textures (a textures.TextureSet, or None) on the device, uploaded once."""
-    if textures is None:
-        from ..usd.textures import TextureSet
-        textures = _NO_TEXTURES.setdefault(device, TextureSet())
-    cached = textures.device_arrays.get(device)
-    if cached is None:
-        texels, levels, tex, bindings = textures.arrays()
-        cached = textures.device_arrays[device] = Textures()
-        cached.texels = wp.array(texels, dtype=wp.vec4, device=device)
-        cached.levels = wp.array(levels, dtype=int, device=device)
-        cached.textures = wp.array(tex, dtype=int, device=device)
-        cached.bindings = wp.array(bindings, dtype=float, device=device)
-    return cached
+    """The frame's textures (a textures.TextureSet, or None) on the device, uploaded once. Safe
+    from two threads (a frame's shading is made beside its geometry): a Textures is published only
+    once every array is in it."""
+    with _TEXTURES_LOCK:
+        if textures is None:
+            from ..usd.textures import TextureSet
+            textures = _NO_TEXTURES.setdefault(device, TextureSet())
+        cached = textures.device_arrays.get(device)
+        if cached is None:
+            texels, levels, tex, bindings = textures.arrays()
+            cached = Textures()
+            cached.texels = wp.array(texels, dtype=wp.vec4, device=device)
+            cached.levels = wp.array(levels, dtype=int, device=device)
+            cached.textures = wp.array(tex, dtype=int, device=device)
+            cached.bindings = wp.array(bindings, dtype=float, device=device)
+            textures.device_arrays[device] = cached
+        return cached
+
+
+_TEXTURES_LOCK = threading.Lock()
 
 
 _NO_TEXTURES: dict = {}

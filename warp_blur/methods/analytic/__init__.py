@@ -2,13 +2,15 @@
 -> front-to-back sort with splitting -> temporal-visibility bitmask (or exact) resolve.
 
 Pipeline per frame: motion segments per prim (segments.py) -> tile bins, static and moving entries
-apart -> classify pass (intervals.py; a sample no moving entry reaches is resolved right there,
-like a sharp render) -> fill pass over the other samples, which computes and stores their
-intervals (coverage and depth, no shading) in one go, nearest entries first, leaving out what
-nearer intervals already hide at every time slot (occlusion.py) (FIRST_FILL_ROOM each; a sample that had
-more is filled again with room for all, so nothing is dropped; pixel chunks keep the arrays within
-the memory budget) -> resolve (resolve.py), which shades only the intervals it finds visible
-(radiance.py).
+apart -> classify pass (intervals.py; a sample no moving entry reaches is set aside, to be
+resolved like a sharp render once shading is ready) -> fill pass over the other samples, which
+computes and stores their intervals (coverage and depth, no shading) in one go, nearest entries
+first, leaving out what nearer intervals already hide at every time slot (occlusion.py)
+(FIRST_FILL_ROOM each; a sample that had more is filled again with room for all, so nothing is
+dropped; pixel chunks keep the arrays within the memory budget) -> resolve (resolve.py), which
+shades only the intervals it finds visible (radiance.py). Classify and fill need no shading: the
+frame's shadow maps are built beside them (segments.start_shading), and the resolves wait for
+them.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import warp as wp
 
 from ..frame import FrameContext
 from ...core.parallel import BandCounter, launch_pixels
-from .intervals import classify_samples, fill_intervals
+from .intervals import classify_samples, fill_intervals, shade_static_samples
 from .occlusion import CULL_ROW_BYTES_BUDGET, MAX_INSTANT_CULL_SLOTS
 from .resolve import resolve_bitmask, resolve_exact
 from .segments import prepare_motion
@@ -40,8 +42,8 @@ OCCLUSION_CULLING = True
 # resolve's 128 instants, the same intervals shaded), CULL_AT_INSTANTS the alternative.
 CULL_SLOTS = 16
 CULL_AT_INSTANTS = False
-# Samples that no moving entry reaches are resolved in the classify pass, with the resolve's own
-# weights (tests switch this off to compare against resolving stored intervals).
+# Samples that no moving entry reaches are resolved without storing intervals (shade_static_samples,
+# with the resolve's own weights; tests switch this off to compare against resolving stored intervals).
 DIRECT_STATIC_PIXELS = True
 # Time slots per shutter at which exact mode tests a moving cutout (with time bits, the bits'
 # own slots): a cutout's mask is point-sampled in time, its edges in space stay exact.
@@ -75,23 +77,30 @@ def pixel_chunks(offsets: np.ndarray, budget_intervals: int) -> list[tuple[int, 
 
 class _IntervalPass:
     """Fill and resolve listed samples of one sub-pixel position, chunk by chunk (arrays sized to
-    each chunk's room), and keep the interval statistics."""
+    each chunk's room), and keep the interval statistics. Resolves wait (their arrays kept) until
+    the pass ends or the memory budget needs their room: the fills, which need no shading, run
+    while the frame's shadow maps are still being built (segments.start_shading)."""
 
-    def __init__(self, ctx: FrameContext, view, geo, sh, moving_bins, sub: wp.vec2, n_shade: int,
+    def __init__(self, ctx: FrameContext, view, geo, shading, moving_bins, sub: wp.vec2, n_shade: int,
                  lights_static: int, static_hit: wp.array, listed: wp.array, rgba: wp.array, weight: float,
-                 fallbacks: BandCounter, truncated: BandCounter, shaded: BandCounter) -> None:
-        self.ctx, self.view, self.geo, self.sh, self.moving_bins = ctx, view, geo, sh, moving_bins
+                 fallbacks: BandCounter, truncated: BandCounter, shaded: BandCounter, budget: int) -> None:
+        self.ctx, self.view, self.geo, self.shading, self.moving_bins = ctx, view, geo, shading, moving_bins
         self.sub, self.n_shade, self.lights_static = sub, n_shade, lights_static
         self.static_hit, self.listed, self.rgba, self.weight = static_hit, listed, rgba, weight
         self.fallbacks, self.truncated, self.shaded = fallbacks, truncated, shaded
         self.total, self.max, self.peak_bytes, self.chunks, self.refilled = 0, 0, 0, 0, 0
         self.room = FIRST_FILL_ROOM
+        self.budget = budget
+        self._waiting: list[tuple[np.ndarray, np.ndarray, tuple]] = []   # resolves not run yet
+        self._waiting_intervals = 0
 
     def fill(self, pixels_np: np.ndarray, spans_np: np.ndarray, count_fallbacks: bool):
         """Run the fill pass for samples pixels_np with (start, end) room spans_np: (counts, arrays)."""
         ctx, dev = self.ctx, self.ctx.device
         n_iv = max(int(spans_np[:, 1].max()) if len(spans_np) else 0, 1)
-        self.peak_bytes = max(self.peak_bytes, n_iv * BYTES_PER_INTERVAL)
+        if self._waiting and self._waiting_intervals + n_iv > self.budget:
+            self.flush()
+        self.peak_bytes = max(self.peak_bytes, (self._waiting_intervals + n_iv) * BYTES_PER_INTERVAL)
         self.chunks += 1
         arrays = (wp.empty(n_iv, dtype=wp.vec2, device=dev), wp.empty(n_iv, dtype=wp.vec2, device=dev),
                   wp.empty(n_iv, dtype=int, device=dev))
@@ -110,14 +119,25 @@ class _IntervalPass:
         return counts.numpy(), arrays
 
     def resolve(self, pixels_np: np.ndarray, spans_np: np.ndarray, arrays) -> None:
-        """Resolve samples pixels_np whose intervals are spans_np of `arrays` into rgba."""
+        """Resolve samples pixels_np whose intervals are spans_np of `arrays` into rgba, once the
+        pass ends or the budget needs the room (flush)."""
         if len(pixels_np) == 0:
             return
+        self._waiting.append((pixels_np, spans_np, arrays))
+        self._waiting_intervals += arrays[0].shape[0]
+
+    def flush(self) -> None:
+        """Run the waiting resolves, in the order they came, and free their arrays."""
+        waiting, self._waiting, self._waiting_intervals = self._waiting, [], 0
+        for pixels_np, spans_np, arrays in waiting:
+            self._resolve_now(pixels_np, spans_np, arrays)
+
+    def _resolve_now(self, pixels_np: np.ndarray, spans_np: np.ndarray, arrays) -> None:
         ctx, dev, s = self.ctx, self.ctx.device, self.ctx.settings
         bits = s.resolved_time_bits
         words = max((bits + 31) // 32, 1)
         iv_t, iv_z, iv_e = arrays
-        shading = (self.view, self.geo, self.sh, self.sub, self.n_shade, self.lights_static)
+        shading = (self.view, self.geo, self.shading(), self.sub, self.n_shade, self.lights_static)
         pixels = wp.array(pixels_np.astype(np.int32), dtype=int, device=dev)
         spans = wp.array(spans_np.astype(np.int32), dtype=wp.vec2i, device=dev)
         with ctx.timed("resolve"):
@@ -141,13 +161,14 @@ class _IntervalPass:
         samples needed (rounded up to 8, at most MAX_FILL_ROOM): few refills, little memory."""
         if len(pixels_np) < PILOT_MIN:
             self._fill_resolve(pixels_np, budget, FIRST_FILL_ROOM)
-            return
-        pilot = np.zeros(len(pixels_np), bool)
-        pilot[::PILOT_STRIDE] = True
-        counts = self._fill_resolve(pixels_np[pilot], budget, FIRST_FILL_ROOM)
-        room = int(min(max(8 * np.ceil(np.percentile(counts, 99.5) / 8.0), 8), MAX_FILL_ROOM))
-        self.room = room
-        self._fill_resolve(pixels_np[~pilot], budget, room)
+        else:
+            pilot = np.zeros(len(pixels_np), bool)
+            pilot[::PILOT_STRIDE] = True
+            counts = self._fill_resolve(pixels_np[pilot], budget, FIRST_FILL_ROOM)
+            room = int(min(max(8 * np.ceil(np.percentile(counts, 99.5) / 8.0), 8), MAX_FILL_ROOM))
+            self.room = room
+            self._fill_resolve(pixels_np[~pilot], budget, room)
+        self.flush()
 
     def _fill_resolve(self, pixels_np: np.ndarray, budget: int, room: int) -> np.ndarray:
         """Fill with `room` intervals each, resolve, refill (exactly) those that had more; the
@@ -182,7 +203,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     bits = s.resolved_time_bits
     n_shade = s.resolved_samples
     dev = ctx.device
-    plan, geo, (static_bins, moving_bins), sh, view = prepare_motion(ctx)
+    plan, geo, (static_bins, moving_bins), shading, view = prepare_motion(ctx)
     geo.cutout_slots = bits if bits > 0 else EXACT_CUTOUT_SLOTS
     geo.clip_bits = bits
     num_px = ctx.num_pixels
@@ -202,14 +223,21 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
         static_hit = wp.zeros(num_px, dtype=int, device=dev)
         with ctx.timed("classify"):
             launch_pixels(classify_samples, num_px,
-                          lambda first, _n: [view, geo, sh, static_bins, moving_bins, sub_v, n_shade, lights_static,
-                                             direct, bits, weight, first, listed, static_hit, rgba], dev, s.threads)
+                          lambda first, _n: [view, geo, static_bins, moving_bins, sub_v, direct, first, listed,
+                                             static_hit], dev, s.threads)
         pixels_np = np.nonzero(listed.numpy())[0].astype(np.int32)
         listed_total += len(pixels_np)
-        interval_pass = _IntervalPass(ctx, view, geo, sh, moving_bins, sub_v, n_shade, lights_static, static_hit,
-                                      listed, rgba, weight, fallbacks, truncated, shaded)
+        interval_pass = _IntervalPass(ctx, view, geo, shading, moving_bins, sub_v, n_shade, lights_static, static_hit,
+                                      listed, rgba, weight, fallbacks, truncated, shaded, budget)
         interval_pass.run(pixels_np, budget)
         passes.append(interval_pass)
+        if direct and len(pixels_np) < num_px:
+            # the samples classify_samples left to a sharp render's cost, now that shading is ready
+            with ctx.timed("classify"):
+                launch_pixels(shade_static_samples, num_px,
+                              lambda first, _n: [view, geo, shading(), sub_v, n_shade, lights_static, bits, weight,
+                                                 first, listed, static_hit, rgba], dev, s.threads)
+    shading()   # joined before the frame ends, even where nothing was shaded with it
     samples_total = max(num_px * len(subs), 1)
     total_iv = sum(p.total for p in passes)
     ctx.counters.update({

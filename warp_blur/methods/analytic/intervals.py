@@ -333,14 +333,15 @@ def static_color(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: 
 
 
 @wp.kernel(enable_backward=False)
-def classify_samples(view: View, geo: Geometry, sh: Shading, static_bins: Bins, moving_bins: Bins, sub: wp.vec2,
-                     n_shade_max: int, lights_static: int, direct: int, bits: int, weight: float, first_pixel: int,
+def classify_samples(view: View, geo: Geometry, static_bins: Bins, moving_bins: Bins, sub: wp.vec2, direct: int,
+                     first_pixel: int,
                      # outputs
-                     listed: wp.array(dtype=int), static_hit: wp.array(dtype=int), rgba: wp.array2d(dtype=float)):
-    """static_hit[pix] = the sample's nearest static entry (or -1), reused by the fill pass. With
-    direct = 1, a sample no moving entry reaches is resolved here (rgba += weight × its colour,
-    listed 0): static pixels cost what a sharp render costs. Other samples get listed = 1 + the
-    tile-list position the fill pass starts from (the entries before it have no interval there)."""
+                     listed: wp.array(dtype=int), static_hit: wp.array(dtype=int)):
+    """static_hit[pix] = the sample's nearest static entry (or -1), reused by the fill pass and
+    by shade_static_samples. With direct = 1, a sample no moving entry reaches gets listed 0:
+    shade_static_samples resolves it (static pixels cost what a sharp render costs). Other samples
+    get listed = 1 + the tile-list position the fill pass starts from (the entries before it have
+    no interval there). No shading here: the frame's shadow maps may still be in the making."""
     pix = first_pixel + wp.tid()
     px = pix % view.width
     py = pix // view.width
@@ -352,13 +353,27 @@ def classify_samples(view: View, geo: Geometry, sh: Shading, static_bins: Bins, 
     static_hit[pix] = e_static
     first = first_reaching(view, geo, moving_bins, tile, sx, sy, o, d, z_static)
     if first < 0 and direct != 0:
-        c = static_color(view, geo, sh, e_static, o, d, n_shade_max, lights_static, bits)
-        add_pixel(rgba, pix, weight, wp.vec3(c[0], c[1], c[2]), c[3])
         listed[pix] = 0
     elif first < 0:
         listed[pix] = 1 + moving_bins.tile_offsets[tile + 1]
     else:
         listed[pix] = 1 + first
+
+
+@wp.kernel(enable_backward=False)
+def shade_static_samples(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_max: int, lights_static: int,
+                         bits: int, weight: float, first_pixel: int, listed: wp.array(dtype=int),
+                         static_hit: wp.array(dtype=int),
+                         # output
+                         rgba: wp.array2d(dtype=float)):
+    """rgba += weight × the colour of each sample classify_samples listed 0 (it sees only its
+    static entry, or the dome): static_color, its one interval weighed as the resolve would."""
+    pix = first_pixel + wp.tid()
+    if listed[pix] != 0:
+        return
+    o, d = sample_ray(view, pix % view.width, pix // view.width, sub)
+    c = static_color(view, geo, sh, static_hit[pix], o, d, n_shade_max, lights_static, bits)
+    add_pixel(rgba, pix, weight, wp.vec3(c[0], c[1], c[2]), c[3])
 
 
 @wp.kernel(enable_backward=False)

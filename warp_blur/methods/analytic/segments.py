@@ -15,15 +15,20 @@ linearly between the kept knots, so they get the fewest segments that keep every
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 from pxr import UsdGeom
 
 from ...core.camera import Projection
+from ...core.parallel import Background
 from ...raster.culling import hidden_back_faces
 from ..frame import MOTION_PROBES
 from ...core.log import warn_once
 from ...usd.scene import Scene
+
+if TYPE_CHECKING:
+    from ...kernels.kernel_types import Shading
 
 
 @dataclass
@@ -267,12 +272,16 @@ def entry_near_depth(positions: np.ndarray, tri_vertices: np.ndarray, entry_tri:
 
 def prepare_motion(ctx):
     """The moving scene of a frame on the device, as the analytic and stochastic methods use it:
-    (plan, Geometry, (Bins of the static entries, Bins of the moving entries), Shading, View)."""
-    from ...raster.device_data import make_bins, make_geometry, make_shading
+    (plan, Geometry, (Bins of the static entries, Bins of the moving entries), shading, View).
+    shading() gives the Shading. Where lights cast shadows, its maps are built on a helper thread
+    (parallel.Background) from the moment the plan is known, beside the camera's own set-up and
+    whatever the caller runs before it first calls shading(), which waits for them."""
+    from ...raster.device_data import make_bins, make_geometry
     s = ctx.settings
     with ctx.timed("segments"):
         plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.resolved_segment_error_px,
                            s.resolved_segment_time_error, ctx.probe_snapshots)
+        shading = start_shading(ctx, plan)
         hidden = hidden_back_faces(plan.positions, ctx.scene.tri_vertices, ctx.scene.tri_object, ctx.scene.tri_closed,
                                    plan.entry_tri, plan.entry_k0, plan.entry_k1, ctx.proj.near, ctx.proj.far,
                                    ctx.proj.orthographic)
@@ -287,12 +296,27 @@ def prepare_motion(ctx):
     tile_bins = ctx.bin_groups(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1, [static, ~static],
                                order_key=near)
     bins = tuple(make_bins(b, ctx.device) for b in tile_bins)
-    shadows = None
-    maps = ctx.shadow_maps(plan.sample)
-    if maps is not None:
-        num_times = maps.times_for(s.shadow_times)
-        with ctx.timed("shadow_total"):
-            shadows = maps.data([(b + 0.5) / num_times for b in range(num_times)], texel_major=True)
-    sh = make_shading(ctx.scene.material_table, plan.lights, ctx.scene.dome, ctx.device, shadows,
-                      ctx.shadow_options(), ctx.scene.materials.textures, ctx.dome_frame())
-    return plan, geo, bins, sh, ctx.view(tile_bins[0])
+    return plan, geo, bins, shading, ctx.view(tile_bins[0])
+
+
+def start_shading(ctx, plan: MotionPlan) -> Callable[[], Shading]:
+    """The frame's Shading over the planned shutter, as a callable: made here when no light casts a
+    shadow, else built by a Background job (the maps read only plan.sample, which nothing changes)."""
+    from ...raster.device_data import make_shading
+    s = ctx.settings
+    options, textures, dome = ctx.shadow_options(), ctx.scene.materials.textures, ctx.dome_frame()
+    _ = ctx.tables   # made here, not raced for by the helper and the camera's set-up
+
+    def build() -> Shading:
+        shadows = None
+        maps = ctx.shadow_maps(plan.sample)
+        if maps is not None:
+            num_times = maps.times_for(s.shadow_times)
+            with ctx.timed("shadow_total"):
+                shadows = maps.data([(b + 0.5) / num_times for b in range(num_times)], texel_major=True)
+        return make_shading(ctx.scene.material_table, plan.lights, ctx.scene.dome, ctx.device, shadows, options,
+                            textures, dome)
+    if not ctx.may_cast_shadows():
+        sh = build()
+        return lambda: sh
+    return Background(build, "shadows").result
