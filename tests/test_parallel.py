@@ -1,5 +1,6 @@
-"""core/parallel.py: band launches cover every pixel once whatever the band count, and
-run_prepared runs prepared passes in order while the next one is being prepared."""
+"""core/parallel.py: band launches cover every pixel once whatever the band count,
+run_prepared runs prepared passes in order while the next one is being prepared, and a
+Background job runs beside the caller on pools of its own."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_blur.core.parallel import FINE_BANDS, launch_pixels, run_prepared
+from warp_blur.core.parallel import FINE_BANDS, Background, launch_pixels, map_threads, run_prepared
 
 
 @wp.kernel(enable_backward=False)
@@ -56,3 +57,34 @@ def test_a_failing_preparation_reaches_the_caller():
 
     with pytest.raises(ValueError, match="bad pass"):
         run_prepared(passes())
+
+
+def test_a_background_job_runs_beside_the_caller_on_pools_of_its_own():
+    """The job's map_threads jobs run while every thread of the caller's pool waits for them (on
+    a shared pool they would queue behind the caller's jobs until those time out), on threads
+    named for the job, and result() gives what the job returned."""
+    busy = threading.Barrier(3)
+    release = threading.Event()
+
+    def job() -> list[str]:
+        busy.wait(5.0)   # both of the caller's pool threads are taken
+        out = map_threads(lambda _x: threading.current_thread().name, [0, 1], threads=2)
+        release.set()
+        return out
+
+    def caller_job(_x: int) -> bool:
+        busy.wait(5.0)
+        return release.wait(5.0)
+
+    background = Background(job, "test")
+    assert all(map_threads(caller_job, [0, 1], threads=2))
+    names = background.result()
+    assert len(names) == 2 and all(n.startswith("warp_blur_test") for n in names)
+
+
+def test_a_background_failure_reaches_the_caller():
+    def job() -> None:
+        raise ValueError("bad maps")
+
+    with pytest.raises(ValueError, match="bad maps"):
+        Background(job, "test").result()

@@ -72,6 +72,7 @@ class ShadowMaps(KeyWarping):
         self._meshes: dict = {}
         self._binned: ShadowData | None = None
         self._still: dict[int, np.ndarray] = {}
+        self._used_index: dict[bytes, np.ndarray] = {}   # visibility mask -> its vertices (_used_vertices)
         self._casters: dict[int, np.ndarray | None] = {}   # per light row: (T,) triangles that may cast
         self._raster = FaceRasterizer(tables, tri_vertices, options.size, device, tri_object)
         self._lock = threading.Lock()
@@ -125,8 +126,17 @@ class ShadowMaps(KeyWarping):
             self.counters[name] = self.counters.get(name, 0) + n
 
     def _used_vertices(self, s: Sample) -> np.ndarray:
-        tris = self.tri_vertices[s.tri_visible] if len(s.tri_visible) else self.tri_vertices
-        return s.positions[np.unique(tris.ravel())] if len(tris) else np.zeros((0, 3))
+        """(U, 3) positions at s of the vertices of its visible triangles (all triangles' when it
+        has no visibility), in index order; the index set is remembered per visibility mask (the
+        probes of a frame mostly share one)."""
+        key = s.tri_visible.tobytes() if len(s.tri_visible) else b""
+        index = self._used_index.get(key)
+        if index is None:
+            tris = self.tri_vertices[s.tri_visible] if len(s.tri_visible) else self.tri_vertices
+            mask = np.zeros(len(s.positions), bool)
+            mask[tris.ravel()] = True
+            index = self._used_index[key] = np.flatnonzero(mask)
+        return s.positions[index]
 
     def _local(self, j: int, s: Sample) -> np.ndarray:
         origin, axes = light_frame(s.lights[j])
