@@ -92,6 +92,41 @@ def test_maps_shared_over_time_follow_a_moving_camera(scene_path):
     assert rmse(shared.rgba[:, left], per_instant.rgba[:, left]) < 0.004
 
 
+@pytest.mark.parametrize("method", ["analytic", "stochastic"])
+def test_maps_built_beside_the_camera_give_the_image_built_before_it(scene_path, monkeypatch, method):
+    """With two threads the maps are built by a Background job while the camera's passes run; with
+    one thread (or the job replaced by building inline) nothing runs beside the caller; every way
+    gives the same image, bit for bit."""
+    from warp_blur.core import parallel
+    from warp_blur.methods.analytic import segments
+
+    path = shadow_stage(scene_path(), mover=True)
+    jobs = []
+
+    class Counted(parallel.Background):
+        def __init__(self, fn, name):
+            jobs.append(name)
+            super().__init__(fn, name)
+
+    monkeypatch.setattr(segments, "Background", Counted)
+    beside = render(path, method, threads=2)
+    assert jobs == ["shadows"]
+    one_core = render(path, method, threads=1)
+    assert jobs == ["shadows"]   # no helper for a one-thread render
+
+    class Inline:
+        def __init__(self, fn, name):
+            self.value = fn()
+
+        def result(self):
+            return self.value
+
+    monkeypatch.setattr(segments, "Background", Inline)
+    inline = render(path, method, threads=2)
+    np.testing.assert_array_equal(beside.rgba, inline.rgba)
+    np.testing.assert_array_equal(beside.rgba, one_core.rgba)
+
+
 @pytest.mark.parametrize("method", ["analytic", "stochastic", "accumulation"])
 def test_translating_occluder_blurs_its_shadow_like_accumulation_with_direct_maps(scene_path, method):
     path = shadow_stage(scene_path(), occluder_samples=MOVING)

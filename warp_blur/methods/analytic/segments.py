@@ -21,7 +21,7 @@ import numpy as np
 from pxr import UsdGeom
 
 from ...core.camera import Projection
-from ...core.parallel import Background
+from ...core.parallel import Background, default_threads
 from ...raster.culling import hidden_back_faces
 from ..frame import MOTION_PROBES
 from ...core.log import warn_once
@@ -301,7 +301,8 @@ def prepare_motion(ctx):
 
 def start_shading(ctx, plan: MotionPlan) -> Callable[[], Shading]:
     """The frame's Shading over the planned shutter, as a callable: made here when no light casts a
-    shadow, else built by a Background job (the maps read only plan.sample, which nothing changes)."""
+    shadow or the render is to use one core, else built by a Background job (the maps read only
+    plan.sample, which nothing changes)."""
     from ...raster.device_data import make_shading
     s = ctx.settings
     options, textures, dome = ctx.shadow_options(), ctx.scene.materials.textures, ctx.dome_frame()
@@ -316,7 +317,8 @@ def start_shading(ctx, plan: MotionPlan) -> Callable[[], Shading]:
                 shadows = maps.data([(b + 0.5) / num_times for b in range(num_times)], texel_major=True)
         return make_shading(ctx.scene.material_table, plan.lights, ctx.scene.dome, ctx.device, shadows, options,
                             textures, dome)
-    if not ctx.may_cast_shadows():
+    # nothing to build beside the camera's work, or one core asked for: no helper thread
+    if not ctx.may_cast_shadows() or (s.threads or default_threads()) == 1:
         sh = build()
         return lambda: sh
     return Background(build, "shadows").result
