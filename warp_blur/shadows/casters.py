@@ -43,13 +43,19 @@ class PlaneGroup:
         self.representative = representative   # the group's largest triangle: its plane at any instant
 
 
+def used_vertex_index(tri_visible: np.ndarray, tri_vertices: np.ndarray, num_points: int) -> np.ndarray:
+    """(U,) ascending indices of the vertices of the triangles tri_visible (a (T,) mask; empty:
+    none) marks, out of num_points."""
+    mask = np.zeros(num_points, bool)
+    if len(tri_visible):
+        mask[tri_vertices[tri_visible].ravel()] = True
+    return np.flatnonzero(mask)
+
+
 def used_vertices(s: Sample, tri_vertices: np.ndarray) -> np.ndarray:
     """(U, 3) positions at sample s of the vertices of visible triangles (the scene that can
     cast or receive a shadow)."""
-    mask = np.zeros(len(s.positions), bool)
-    if len(s.tri_visible):
-        mask[tri_vertices[s.tri_visible].ravel()] = True
-    return s.positions[mask]
+    return s.positions[used_vertex_index(s.tri_visible, tri_vertices, len(s.positions))]
 
 
 def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:

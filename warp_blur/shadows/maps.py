@@ -31,7 +31,7 @@ from ..core.log import warn_once
 from ..core.parallel import default_threads, map_threads
 from ..kernels.shadow_lookup import FACE_WIDTH
 from ..raster.culling import instance_volume_sign
-from .casters import light_casters
+from .casters import light_casters, used_vertex_index
 from .direct import STILL_PROBES, FaceRasterizer, still_triangles
 from .layout import (FAR, Face, LightLayout, Sample, ShadowData, ShadowOptions, fit_faces, light_frame,
                      light_sample_offsets)
@@ -132,10 +132,8 @@ class ShadowMaps(KeyWarping):
         key = s.tri_visible.tobytes() if len(s.tri_visible) else b""
         index = self._used_index.get(key)
         if index is None:
-            tris = self.tri_vertices[s.tri_visible] if len(s.tri_visible) else self.tri_vertices
-            mask = np.zeros(len(s.positions), bool)
-            mask[tris.ravel()] = True
-            index = self._used_index[key] = np.flatnonzero(mask)
+            visible = s.tri_visible if len(s.tri_visible) else np.ones(len(self.tri_vertices), bool)
+            index = self._used_index[key] = used_vertex_index(visible, self.tri_vertices, len(s.positions))
         return s.positions[index]
 
     def _local(self, j: int, s: Sample) -> np.ndarray:
