@@ -194,3 +194,36 @@ def test_openexr_images_decode_grey_rgba_and_non_finite_values(tmp_path):
     np.testing.assert_allclose(rgba[..., 0], [[0.25, 0.0], [65504.0, 3.0]])
     np.testing.assert_allclose(rgba[..., 1], rgba[..., 0])
     np.testing.assert_allclose(rgba[..., 3], 1.0)
+
+
+def _texture_set(path: str):
+    from warp_blur.usd.textures import TextureSet
+    textures = TextureSet()
+    assert textures.add_texture(path, "raw", "clamp", "clamp") is not None
+    textures.add_binding(0, "rgb", (1, 1, 1, 1), (0, 0, 0, 0))
+    return textures
+
+
+def test_frames_reading_the_same_images_share_one_upload_and_a_changed_image_is_read_again(tmp_path):
+    """Each frame builds its own TextureSet; one that reads the images of an earlier frame reuses
+    its texel atlas on the device (no upload), and a rewritten image file is uploaded afresh."""
+    from warp_blur.raster.device_data import texture_arrays
+    path = str(tmp_path / "tex.png")
+    Image.fromarray(np.full((4, 4, 3), 64, np.uint8)).save(path)
+    first = texture_arrays(_texture_set(path), "cpu")
+    second = texture_arrays(_texture_set(path), "cpu")
+    assert second.texels is first.texels
+    np.testing.assert_allclose(first.texels.numpy()[0], (64 / 255, 64 / 255, 64 / 255, 1.0), rtol=1e-6)
+    Image.fromarray(np.full((8, 8, 3), 200, np.uint8)).save(path)   # new size and mtime
+    third = texture_arrays(_texture_set(path), "cpu")
+    assert third.texels is not first.texels
+    np.testing.assert_allclose(third.texels.numpy()[0], (200 / 255, 200 / 255, 200 / 255, 1.0), rtol=1e-6)
+
+
+def test_a_renderer_shows_a_texture_rewritten_between_frames(scene_path):
+    path = _textured_quad_stage(scene_path(), np.full((4, 4, 3), 64, np.uint8))
+    r = wb.Renderer(path, resolution=(32, 24), settings=wb.RenderSettings(method="analytic", aovs=()))
+    before = r.render(1.0).rgba[12, 16, 0]
+    Image.fromarray(np.full((8, 8, 3), 200, np.uint8)).save(os.path.join(os.path.dirname(path), "tex.png"))
+    after = r.render(1.0).rgba[12, 16, 0]
+    assert before == pytest.approx(64 / 255, abs=2e-3) and after == pytest.approx(200 / 255, abs=2e-3)

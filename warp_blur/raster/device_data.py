@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+from collections import OrderedDict
 
 import numpy as np
 import warp as wp
@@ -137,9 +138,9 @@ def texture_arrays(textures, device: str) -> Textures:
             textures = _NO_TEXTURES.setdefault(device, TextureSet())
         cached = textures.device_arrays.get(device)
         if cached is None:
-            texels, levels, tex, bindings = textures.arrays()
+            levels, tex, bindings = textures.index_arrays()
             cached = Textures()
-            cached.texels = wp.array(texels, dtype=wp.vec4, device=device)
+            cached.texels = _texel_atlas(textures, device)
             cached.levels = wp.array(levels, dtype=int, device=device)
             cached.textures = wp.array(tex, dtype=int, device=device)
             cached.bindings = wp.array(bindings, dtype=float, device=device)
@@ -147,7 +148,27 @@ def texture_arrays(textures, device: str) -> Textures:
         return cached
 
 
+def _texel_atlas(textures, device: str) -> wp.array:
+    """The texel atlas of a TextureSet on the device. A stage's frames each build their own
+    TextureSet from the same images, so the last few atlases are kept by what they hold
+    (TextureSet.texel_key): a frame that reads the images of an earlier one uploads nothing
+    (McUsd: 0.1 s a frame at 640×480). Called under _TEXTURES_LOCK."""
+    key = (device, textures.texel_key)
+    atlas = _TEXEL_ATLASES.get(key)
+    if atlas is None:
+        atlas = wp.array(textures.texel_atlas(), dtype=wp.vec4, device=device)
+        _TEXEL_ATLASES[key] = atlas
+        while len(_TEXEL_ATLASES) > TEXEL_ATLASES_KEPT:
+            _TEXEL_ATLASES.popitem(last=False)
+    else:
+        _TEXEL_ATLASES.move_to_end(key)
+    return atlas
+
+
 _TEXTURES_LOCK = threading.Lock()
+#: texel atlases kept on the devices, most recently used last (a stage's textures, a few stages')
+TEXEL_ATLASES_KEPT = 4
+_TEXEL_ATLASES: OrderedDict = OrderedDict()
 
 
 _NO_TEXTURES: dict = {}

@@ -63,6 +63,12 @@ def mip_chain(img: np.ndarray) -> list[np.ndarray]:
 def read_image(resolved_path: str, color_space: str) -> list[np.ndarray] | None:
     """Mip chain of (H, W, 4) linear float32 RGBA levels of an image asset, or None (unreadable).
     Cached per process by path, colour space and the file's (or package's) size and mtime."""
+    return read_image_keyed(resolved_path, color_space)[1]
+
+
+def read_image_keyed(resolved_path: str, color_space: str) -> tuple[tuple, list[np.ndarray] | None]:
+    """(cache key, read_image's result): the key (path, colour space, size and mtime) names the
+    texels exactly, so a frame's texel atlas can be matched to an earlier frame's upload."""
     try:
         st = os.stat(resolved_path.split("[", 1)[0])
         stamp = (st.st_size, st.st_mtime_ns)
@@ -71,7 +77,7 @@ def read_image(resolved_path: str, color_space: str) -> list[np.ndarray] | None:
     key = (resolved_path, color_space, stamp)
     with _cache_lock:
         if key in _image_cache:
-            return _image_cache[key]
+            return key, _image_cache[key]
     levels = None
     try:
         from PIL import Image
@@ -99,7 +105,7 @@ def read_image(resolved_path: str, color_space: str) -> list[np.ndarray] | None:
                                               f"{str(exc)[:80]}); using the node's fallback")
     with _cache_lock:
         _image_cache[key] = levels
-    return levels
+    return key, levels
 
 
 EXR_MAGIC = b"\x76\x2f\x31\x01"
@@ -154,6 +160,7 @@ class TextureSet:
     levels: list = field(default_factory=list)        # [offset, w, h]
     textures: list = field(default_factory=list)      # [first level, count, wrapS, wrapT]
     bindings: list = field(default_factory=list)      # BINDING_WIDTH floats
+    sources: list = field(default_factory=list)       # what each texture's texels were read from
     _texture_index: dict = field(default_factory=dict)
     _size: int = 0
     device_arrays: dict = field(default_factory=dict)   # device -> uploaded arrays
@@ -162,15 +169,16 @@ class TextureSet:
         """(texture index, level-0 size in texels) of an image with these wrap modes, or None."""
         key = (resolved_path, color_space, wrap_s, wrap_t)
         if key not in self._texture_index:
-            chain = read_image(resolved_path, color_space)
+            source, chain = read_image_keyed(resolved_path, color_space)
             if chain is None:
                 self._texture_index[key] = None
             else:
-                self._texture_index[key] = (self._append(chain, wrap_s, wrap_t), max(chain[0].shape[:2]))
+                self._texture_index[key] = (self._append(chain, wrap_s, wrap_t, source), max(chain[0].shape[:2]))
         return self._texture_index[key]
 
-    def _append(self, chain: list[np.ndarray], wrap_s: str, wrap_t: str) -> int:
+    def _append(self, chain: list[np.ndarray], wrap_s: str, wrap_t: str, source: tuple) -> int:
         first = len(self.levels)
+        self.sources.append(source)
         for lev in chain:
             h, w = lev.shape[:2]
             self.levels.append([self._size, w, h])
@@ -183,17 +191,21 @@ class TextureSet:
         """The first of UDIM_TILES consecutive textures of a UDIM set ((resolved path, tile id)
         pairs; tiles that are missing or unreadable hold `fallback` rgba), or None when no tile reads."""
         chains = {}
+        sources = {}
         for path, tile in tiles:
             if 1001 <= tile < 1001 + UDIM_TILES:
-                chain = read_image(path, color_space)
+                source, chain = read_image_keyed(path, color_space)
                 if chain is not None:
                     chains[tile] = chain
+                    sources[tile] = source
         if not chains:
             return None
         blank = [np.asarray(fallback, np.float32).reshape(1, 1, 4)]
+        blank_source = ("fallback", tuple(float(x) for x in blank[0].ravel()))
         base = len(self.textures)
         for tile in range(1001, 1001 + UDIM_TILES):
-            self._append(chains.get(tile, blank), "clamp", "clamp")
+            source = sources.get(tile, blank_source)
+            self._append(chains.get(tile, blank), "clamp", "clamp", source)
         return base
 
     def add_binding(self, texture: int, channel: str, scale, bias, udim: bool = False,
@@ -211,14 +223,28 @@ class TextureSet:
     def empty(self) -> bool:
         return not self.bindings
 
-    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(texels (N, 4) f32, levels (L, 3) i32, textures (T, 4) i32, bindings (B, W) f32), at
-        least one row each (kernels take no empty arrays)."""
-        texels = np.concatenate(self.texels).astype(np.float32) if self.texels else np.zeros((1, 4), np.float32)
+    @property
+    def texel_key(self) -> tuple:
+        """What the texel atlas holds, in order (each image by read_image's cache key: path, colour
+        space, the file's size and mtime; or a fallback's value): equal keys, equal texels, so a
+        frame that reads the same images as an earlier one reuses its upload (device_data)."""
+        return tuple(self.sources)
+
+    def texel_atlas(self) -> np.ndarray:
+        """(N, 4) float32: every level of every texture, one after another (one row at least)."""
+        return np.concatenate(self.texels).astype(np.float32) if self.texels else np.zeros((1, 4), np.float32)
+
+    def index_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(levels (L, 3) i32, textures (T, 4) i32, bindings (B, W) f32), at least one row each
+        (kernels take no empty arrays)."""
         levels = np.asarray(self.levels or [[0, 1, 1]], np.int32)
         textures = np.asarray(self.textures or [[0, 1, 0, 0]], np.int32)
         bindings = np.asarray(self.bindings or [[0.0] * BINDING_WIDTH], np.float32)
-        return texels, levels, textures, bindings
+        return levels, textures, bindings
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(texels (N, 4) f32, levels, textures, bindings): texel_atlas and index_arrays."""
+        return (self.texel_atlas(), *self.index_arrays())
 
 
 def texture_lod(proj, positions: np.ndarray, tri_vertices: np.ndarray, corner_uvs: np.ndarray) -> np.ndarray:
