@@ -183,3 +183,30 @@ def test_the_level_follows_the_meshs_size_on_screen(scene_path):
         tris[name] = Scene(stage, cam, 1.0, Shutter(1.0, 1.0), proj=proj).num_triangles
     assert tris["none"] == tris["big"] == 2 * 96        # level 2: 96 quads
     assert tris["speck"] == 2 * 24                       # level 1: 24 quads
+
+
+def test_a_refinement_is_built_once_for_the_frames_that_share_its_topology(scene_path, monkeypatch):
+    """The stencil depends on the topology alone: a second frame (and a second renderer) of the
+    same cage reuses it, with the same image; a changed topology is refined afresh."""
+    import warp_blur.usd.subdivision as subdivision
+    calls = []
+    original = subdivision.refine
+    monkeypatch.setattr(subdivision, "refine", lambda *a, **k: calls.append(1) or original(*a, **k))
+    monkeypatch.setattr(subdivision, "_REFINEMENTS", type(subdivision._REFINEMENTS)())
+    path = _cube_stage(scene_path(), "catmullClark", moving=True)
+    settings = wb.RenderSettings(method="analytic", aovs=(), shadows="off")
+    first = wb.Renderer(path, resolution=(64, 48), settings=settings).render(1.0).rgba
+    again = wb.Renderer(path, resolution=(64, 48), settings=settings)
+    assert np.array_equal(again.render(1.0).rgba, first) and len(calls) == 1
+    again.render(1.25)
+    assert len(calls) == 1
+    monkeypatch.setattr(subdivision, "_REFINEMENTS", type(subdivision._REFINEMENTS)())
+    fresh = wb.Renderer(path, resolution=(64, 48), settings=settings).render(1.0).rgba
+    assert np.array_equal(fresh, first) and len(calls) == 2
+    from pxr import Usd
+    stage = Usd.Stage.Open(path)
+    cube = next(UsdGeom.Mesh(p) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh))
+    cube.GetFaceVertexIndicesAttr().Set([i for f in CUBE_FACES[::-1] for i in f])   # the faces reordered
+    stage.GetRootLayer().Save()
+    wb.Renderer(path, resolution=(64, 48), settings=settings).render(1.0)
+    assert len(calls) == 3
