@@ -242,10 +242,6 @@ class TextureSet:
         bindings = np.asarray(self.bindings or [[0.0] * BINDING_WIDTH], np.float32)
         return levels, textures, bindings
 
-    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(texels (N, 4) f32, levels, textures, bindings): texel_atlas and index_arrays."""
-        return (self.texel_atlas(), *self.index_arrays())
-
 
 def texture_lod(proj, positions: np.ndarray, tri_vertices: np.ndarray, corner_uvs: np.ndarray) -> np.ndarray:
     """(T,) float32 log2 of each triangle's texture-coordinate span per pixel at the shutter
