@@ -60,6 +60,7 @@ def test_still_tiles_rendered_once_equal_every_instant(scene_path, monkeypatch, 
     kw = dict(frame=1, resolution=(128, 96), samples=16, aovs=(), spatial_samples=spatial)
     once = wb.render(path, **kw)
     assert 0.2 < once.stats["accumulation_still_pixels"] < 0.9
+    assert once.stats["accumulation_moving_tiles"] == "changing triangles"
     monkeypatch.setattr(accumulation, "STATIC_TILES", False)
     every = wb.render(path, **kw)
     assert "accumulation_still_pixels" not in every.stats
@@ -85,6 +86,7 @@ def test_still_tiles_reshaded_per_instant_equal_every_instant(scene_path, monkey
         kw["shadows"] = "direct" if case.endswith("direct") else "warped"
     once = wb.render(path, **kw)
     assert once.stats["accumulation_still_shading"] == "per instant"
+    assert once.stats["accumulation_moving_tiles"] == "changing triangles"
     assert 0.2 < once.stats["accumulation_still_pixels"] < 0.95
     monkeypatch.setattr(accumulation, "STATIC_TILES", False)
     every = wb.render(path, **kw)
@@ -114,6 +116,41 @@ def test_still_tiles_under_shadows_that_never_change_render_once(scene_path, mon
     assert np.abs(once.rgba - every.rgba).max() < 1e-5
     unshadowed = wb.render(path, shadows="off", **kw)
     assert np.abs(once.rgba - unshadowed.rgba).max() > 0.05    # the occluder's shadow is there
+
+
+@pytest.mark.parametrize("shadows", ["off", "direct"])
+def test_moving_tiles_rasterise_only_the_triangles_that_change(scene_path, monkeypatch, shadows):
+    """Where something moves, the still triangles' nearest hit is found once (and shaded once
+    under steady shading) and only the changing triangles are rasterised per instant: the same
+    image as rasterising every triangle there at every instant, with a translucent quad lying on
+    the still ground (equal depths: the lower triangle index shows, as in a full pass) and 2×2
+    sub-samples."""
+    from pxr import Sdf, Usd, UsdShade
+    from authoring import add_material, add_mesh
+    from scenes import shadow_stage
+    import warp_blur.methods.accumulation as accumulation
+    path = shadow_stage(scene_path(), occluder_samples={0.5: (-1.0, 1.0, 0.0), 1.5: (1.0, 1.0, 0.0)})
+    stage = Usd.Stage.Open(path)
+    glass = add_material(stage, "/World/Looks/Glass", diffuse=(0.2, 0.3, 0.9), roughness=0.5)
+    surface = UsdShade.Shader.Get(stage, "/World/Looks/Glass/PreviewSurface")
+    surface.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(0.5)
+    surface.CreateInput("opacityThreshold", Sdf.ValueTypeNames.Float).Set(0.0)
+    add_mesh(stage, "/World/Decal", [(-1.0, 0, 1.0), (1.0, 0, 1.0), (1.0, 0, -1.0), (-1.0, 0, -1.0)], [4],
+             [0, 1, 2, 3], material=glass)
+    stage.GetRootLayer().Save()
+    kw = dict(frame=1, resolution=(96, 72), samples=8, aovs=(), shadow_map_size=256, shadows=shadows,
+              spatial_samples=2)
+    split = wb.render(path, **kw)
+    assert split.stats["accumulation_moving_tiles"] == "changing triangles"
+    assert split.stats["accumulation_still_shading"] == ("once" if shadows == "off" else "per instant")
+    monkeypatch.setattr(accumulation, "MOVING_SPLIT", False)
+    full = wb.render(path, **kw)
+    assert full.stats["accumulation_moving_tiles"] == "every triangle"
+    assert np.abs(split.rgba - full.rgba).max() < 1e-6
+    # the decal shows (half the instants) where the occluder is not in front of it
+    plain = wb.render(shadow_stage(scene_path(), occluder_samples={0.5: (-1.0, 1.0, 0.0), 1.5: (1.0, 1.0, 0.0)}),
+                      **kw)
+    assert np.abs(split.rgba - plain.rgba).max() > 0.05
 
 
 def test_recorded_hits_stay_within_the_memory_budget(scene_path):

@@ -178,6 +178,82 @@ def shade_recorded(view: View, geo: Geometry, sh: Shading, u: float, weight: flo
     add_pixel(rgba, pix, weight / float(n * n), color, cover)
 
 
+@wp.kernel(enable_backward=False)
+def record_nearest(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, pixels: wp.array(dtype=int),
+                   first: int, shade: int,
+                   # outputs
+                   rec_e: wp.array2d(dtype=int), rec_hit: wp.array2d(dtype=wp.vec4),
+                   rec_color: wp.array2d(dtype=wp.vec3)):
+    """For listed pixel pixels[first + tid] (row first + tid), each sub-sample's nearest entry at
+    shutter time u: its triangle (-1: none) and hit, and with shade = 1 its radiance then (zero
+    where nothing is hit). Nothing is added to the image: render_over_recorded composites it."""
+    k = first + wp.tid()
+    pix = pixels[k]
+    px = pix % view.width
+    py = pix // view.width
+    tile = pixel_tile(view, px, py)
+    n = view.spatial
+    for sy in range(n):
+        for sx in range(n):
+            x = float(px) + (float(sx) + 0.5) / float(n)
+            y = float(py) + (float(sy) + 0.5) / float(n)
+            o = pixel_ray_origin(view, x, y)
+            d = pixel_ray_direction(view, x, y)
+            e, alpha, hit = nearest_entry(view, geo, bins, tile, x, y, o, d, u)
+            tri = int(-1)
+            color = wp.vec3(0.0, 0.0, 0.0)
+            if e >= 0:
+                tri = geo.entry_tri[e]
+                if shade != 0:
+                    color = shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
+            rec_e[k, sy * n + sx] = tri
+            rec_hit[k, sy * n + sx] = hit
+            if shade != 0:   # (rec_color holds one element otherwise)
+                rec_color[k, sy * n + sx] = color
+
+
+@wp.kernel(enable_backward=False)
+def render_over_recorded(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float,
+                         pixels: wp.array(dtype=int), first: int, steady: int, rec_e: wp.array2d(dtype=int),
+                         rec_hit: wp.array2d(dtype=wp.vec4), rec_color: wp.array2d(dtype=wp.vec3),
+                         # outputs
+                         rgba: wp.array2d(dtype=float)):
+    """render_sharp at listed pixels where a recorded surface (record_nearest over the triangles
+    that look the same at every instant) stands behind the triangles that change: only the latter
+    are in bins (geo's entries are all triangles, entry = triangle index); each sub-sample shows
+    the nearer of the two (equal depths: the lower triangle index, as nearest_entry decides), the
+    recorded one with its recorded radiance when steady = 1, else shaded at u."""
+    k = first + wp.tid()
+    pix = pixels[k]
+    px = pix % view.width
+    py = pix // view.width
+    tile = pixel_tile(view, px, py)
+    n = view.spatial
+    color = wp.vec3(0.0, 0.0, 0.0)
+    cover = float(0.0)
+    for sy in range(n):
+        for sx in range(n):
+            x = float(px) + (float(sx) + 0.5) / float(n)
+            y = float(py) + (float(sy) + 0.5) / float(n)
+            o = pixel_ray_origin(view, x, y)
+            d = pixel_ray_direction(view, x, y)
+            e, alpha, hit = nearest_entry(view, geo, bins, tile, x, y, o, d, u)
+            r = rec_e[k, sy * n + sx]
+            r_hit = rec_hit[k, sy * n + sx]
+            if e >= 0 and (r < 0 or hit[1] < r_hit[1] or (hit[1] == r_hit[1] and e < r)):
+                color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
+                cover = cover + 1.0
+            elif r >= 0:
+                if steady != 0:
+                    color = color + rec_color[k, sy * n + sx]
+                else:
+                    color = color + shade_entry_hit(view, geo, sh, r, 0.0, u, o, d, r_hit)
+                cover = cover + 1.0
+            else:
+                color = color + dome_at(sh, d, u)
+    add_pixel(rgba, pix, weight / float(n * n), color, cover)
+
+
 @wp.func
 def store_depth_motion(view: View, geo: Geometry, e: int, hit: wp.vec4, k_open: int, k_close: int, pix: int,
                        depth: wp.array(dtype=float), motion: wp.array(dtype=wp.vec2)):

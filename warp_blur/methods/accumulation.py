@@ -5,7 +5,10 @@ any of the N instants see the same surfaces at every instant. Under lights that 
 cast no shadow, or whose shadow maps are the same at every instant (nothing moves in the lights'
 views), they look the same too, and are rendered once; otherwise their visibility is
 found once and only their shading is redone per instant. The other tiles are rendered at every
-instant. The result is the same average (tested against rendering every pixel at every instant).
+instant, but only the triangles that change are rasterised there per instant: the nearest of the
+still ones is found once (and shaded once where shading is steady) and shown wherever nothing
+that changes is in front of it. The result is the same average (tested against rendering every
+pixel at every instant).
 """
 
 from __future__ import annotations
@@ -22,8 +25,12 @@ from .frame import FrameContext
 
 #: tests switch this off to compare against rendering every pixel at every instant
 STATIC_TILES = True
+#: tests switch this off to compare against rasterising every triangle in the moving tiles
+MOVING_SPLIT = True
 #: bytes per recorded hit (triangle index and (hit, depth, barycentrics)), held for the frame
 RECORD_BYTES = 4 + 16
+#: bytes per recorded radiance (moving tiles under steady shading)
+COLOR_BYTES = 12
 
 
 def instants(n: int) -> np.ndarray:
@@ -38,11 +45,13 @@ class MovingTiles:
     the same at every instant too (lights that hold still and cast no shadow, or whose shadow maps
     are the same at every instant); needed (T,) bool:
     the triangles that can show in those tiles (the moving ones and still ones whose box meets
-    a moving tile)."""
+    a moving tile); changing (T,) bool: the triangles that move, change visibility or have
+    fractional opacity (the others look the same at every instant)."""
 
     pixels: np.ndarray
     steady: bool
     needed: np.ndarray
+    changing: np.ndarray
 
 
 def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
@@ -100,7 +109,7 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
     touched = (integral[ty1, tx1] - integral[ty0, tx1] - integral[ty1, tx0] + integral[ty0, tx0]) > 0
     needed = ~still
     needed[kept[touched]] = True
-    return MovingTiles(np.nonzero(pixel_moving.ravel())[0], bool(steady), needed)
+    return MovingTiles(np.nonzero(pixel_moving.ravel())[0], bool(steady), needed, ~still)
 
 
 def tile_rects(ctx: FrameContext, positions: np.ndarray, tris: np.ndarray, with_kept: bool = False):
@@ -127,26 +136,36 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
     ctx.instants = n
     us = instants(n)
     plan = moving_tile_pixels(ctx, us) if (STATIC_TILES and n > 1) else None
-    if plan is not None and not plan.steady:
-        # recorded hits: a triangle index and a vec4 per still pixel and sub-sample
-        record_bytes = (ctx.num_pixels - len(plan.pixels)) * ctx.settings.spatial_samples ** 2 * RECORD_BYTES
-        if record_bytes > ctx.settings.memory_budget_mb * 2**20:
+    split = False
+    if plan is not None:
+        # recorded hits: a triangle index and a vec4 per still pixel and sub-sample (still tiles
+        # reshaded per instant), and per moving-tile pixel and sub-sample (with its radiance when
+        # steady) where still triangles can show behind the changing ones
+        subs = ctx.settings.spatial_samples ** 2
+        budget = ctx.settings.memory_budget_mb * 2**20
+        still_bytes = 0 if plan.steady else (ctx.num_pixels - len(plan.pixels)) * subs * RECORD_BYTES
+        if still_bytes > budget:
             plan = None
+        else:
+            moving_bytes = len(plan.pixels) * subs * (RECORD_BYTES + (COLOR_BYTES if plan.steady else 0))
+            split = MOVING_SPLIT and (plan.needed & ~plan.changing).any() and still_bytes + moving_bytes <= budget
     # each pass's host work (snapshot, binning, uploads, shadow maps) is done on a helper thread
     # while the pass before it renders
-    run_prepared(_passes(ctx, us, plan, rgba))
+    run_prepared(_passes(ctx, us, plan, split, rgba))
     if plan is not None:
         ctx.counters["accumulation_still_pixels"] = 1.0 - len(plan.pixels) / ctx.num_pixels
         ctx.counters["accumulation_still_shading"] = "once" if plan.steady else "per instant"
+        ctx.counters["accumulation_moving_tiles"] = "changing triangles" if split else "every triangle"
     ctx.counters["instants"] = n
     return rgba.numpy()
 
 
-def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None,
+def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None, split: bool,
             rgba: wp.array) -> Iterator[Callable[[], None]]:
     """The frame's passes in order, each prepared when asked for (frame.prepare_sharp_pass): with
     a plan, still tiles once (steady) or found once and reshaded per instant, and the moving
-    tiles at every instant; without one, every pixel at every instant."""
+    tiles at every instant (with split, the still triangles there found once, and only the
+    changing ones rasterised per instant); without one, every pixel at every instant."""
     n = len(us)
     if plan is None:
         for snap in _snapshots(ctx, us):
@@ -158,6 +177,7 @@ def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None,
     still[plan.pixels] = False
     still_px = np.nonzero(still)[0]
     hits = None
+    behind = None
     for i, snap in enumerate(_snapshots(ctx, us)):
         run = None
         if i == 0 and plan.steady:   # still tiles look the same at every instant: once, at full weight
@@ -168,7 +188,13 @@ def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None,
             run = ctx.prepare_reshade_pass(snap, hits, 1.0 / n, rgba)
         if run is not None:
             yield run
-        run, _ = ctx.prepare_sharp_pass(snap, 1.0 / n, rgba, plan.pixels, triangles=plan.needed)
+        if split:
+            if i == 0:   # the still triangles' nearest hit in the moving tiles, once
+                run, behind = ctx.prepare_record_pass(snap, plan.pixels, plan.needed & ~plan.changing, plan.steady)
+                yield run
+            run = ctx.prepare_over_recorded_pass(snap, behind, plan.changing, 1.0 / n, rgba)
+        else:
+            run, _ = ctx.prepare_sharp_pass(snap, 1.0 / n, rgba, plan.pixels, triangles=plan.needed)
         if run is not None:
             yield run
 

@@ -18,7 +18,7 @@ from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_
 from ..kernels.kernel_types import Geometry
 from ..core import progress
 from ..core.parallel import FINE_BANDS, launch_pixels
-from ..kernels.raster import render_depth_motion, render_sharp, shade_recorded
+from ..kernels.raster import record_nearest, render_depth_motion, render_over_recorded, render_sharp, shade_recorded
 from ..usd.scene import Scene, Snapshot
 from ..core.settings import RenderSettings
 from ..shadows.layout import Sample, ShadowOptions
@@ -45,6 +45,7 @@ class RecordedHits:
     pixels: wp.array
     entries: wp.array
     hits: wp.array
+    colors: wp.array | None = None   # (P, subsamples) vec3 radiance at the recording instant, when kept
 
 
 @dataclass
@@ -345,6 +346,74 @@ class FrameContext:
                               lambda first, _n: [hits.view, geo, sh, u, weight, hits.pixels, first, hits.entries,
                                                  hits.hits, rgba], self.device, self.settings.threads,
                               bands_per_thread=FINE_BANDS)
+        return run
+
+    def prepare_record_pass(self, snapshot: Snapshot, pixels: np.ndarray, triangles: np.ndarray,
+                            shade: bool) -> "tuple[Callable[[], None], RecordedHits]":
+        """(run, hits): run() records, at the listed pixels (flat indices), each sub-sample's nearest
+        hit at this instant among `triangles` (a (T,) mask) and, with shade, its radiance then;
+        nothing is added to the image (prepare_over_recorded_pass composites it)."""
+        sh = self.shading([snapshot])
+        geo, bins = self.static_geometry([snapshot], 0, triangles, self.receiver_velocities(snapshot))
+        view, b = self.view(bins), make_bins(bins, self.device)
+        u = self.snapshot_fraction(snapshot)
+        dev = self.device
+        listed = wp.array(pixels.astype(np.int32), dtype=int, device=dev)
+        subs = self.settings.spatial_samples ** 2
+        rec_e = wp.zeros((len(pixels), subs), dtype=int, device=dev)
+        rec_hit = wp.zeros((len(pixels), subs), dtype=wp.vec4, device=dev)
+        rec_color = wp.zeros((len(pixels), subs) if shade else (1, 1), dtype=wp.vec3, device=dev)
+
+        def run() -> None:
+            with self.timed("render"):
+                launch_pixels(record_nearest, len(pixels),
+                              lambda first, _n: [view, geo, sh, b, u, listed, first, 1 if shade else 0, rec_e,
+                                                 rec_hit, rec_color], dev, self.settings.threads,
+                              bands_per_thread=FINE_BANDS)
+        return run, RecordedHits(view, listed, rec_e, rec_hit, rec_color if shade else None)
+
+    def prepare_over_recorded_pass(self, snapshot: Snapshot, hits: "RecordedHits", triangles: np.ndarray,
+                                   weight: float, rgba: wp.array) -> "Callable[[], None] | None":
+        """A pass that, run, adds weight × the sharp image of one instant at the recorded pixels,
+        where the recorded surfaces (prepare_record_pass) stand still and only `triangles` (a (T,)
+        mask) change: those are rasterised and the nearer of them and the recorded hit shown (the
+        recorded one with its recorded radiance when hits.colors is set, else shaded now). Equal
+        to sharp_pass over both sets, at the cost of rasterising the changing ones only."""
+        sc = self.scene
+        tris = np.nonzero(snapshot.tri_visible & triangles)[0].astype(np.int32)
+        k = np.zeros(len(tris), np.int32)
+        hidden = hidden_back_faces(snapshot.positions[None], sc.tri_vertices, sc.tri_object, sc.tri_closed, tris,
+                                   k, k, self.proj.near, self.proj.far, self.proj.orthographic)
+        tris, k = tris[~hidden], k[~hidden]
+        bins = self.bin(snapshot.positions[None], tris, k, k)
+        # the bins list triangle indices: every triangle is an entry of the instant's geometry
+        num = sc.num_triangles
+        boxes = np.zeros((num, 4), np.float32)
+        boxes[tris] = bins.entry_boxes
+        bands = np.tile(np.array([0.0, 0.0, -1.0, 1.0], np.float32), (num, 1))
+        if bins.entry_bands is not None:
+            bands[tris] = bins.entry_bands
+        bins.tile_entries = tris[bins.tile_entries].astype(np.int32)
+        bins.entry_boxes, bins.entry_bands = boxes, bands
+        all_tris = np.arange(num, dtype=np.int32)
+        zero = np.zeros(num, np.int32)
+        normals = snapshot.normals[None] if sc.any_smooth else None
+        geo = make_geometry(self.tables, snapshot.positions[None], normals, all_tris, zero, zero,
+                            self.receiver_velocities(snapshot))
+        sh = self.shading([snapshot])
+        b = make_bins(bins, self.device)
+        u = self.snapshot_fraction(snapshot)
+        steady = 1 if hits.colors is not None else 0
+        colors = hits.colors if hits.colors is not None else wp.zeros((1, 1), dtype=wp.vec3, device=self.device)
+
+        view = self.view(bins)
+
+        def run() -> None:
+            with self.timed("render"):
+                launch_pixels(render_over_recorded, hits.pixels.shape[0],
+                              lambda first, _n: [view, geo, sh, b, u, weight, hits.pixels, first, steady,
+                                                 hits.entries, hits.hits, colors, rgba], self.device,
+                              self.settings.threads, bands_per_thread=FINE_BANDS)
         return run
 
     def depth_motion(self, snapshots: list[Snapshot] | None = None) -> tuple[np.ndarray, np.ndarray]:
