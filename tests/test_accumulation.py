@@ -153,6 +153,30 @@ def test_moving_tiles_rasterise_only_the_triangles_that_change(scene_path, monke
     assert np.abs(split.rgba - plain.rgba).max() > 0.05
 
 
+@pytest.mark.parametrize("spatial", [1, 2])
+def test_still_pixels_whose_shadows_never_change_are_shaded_once(scene_path, monkeypatch, spatial):
+    """A still camera, ground and light, and an occluder crossing above: its shadow moves, so
+    the still tiles are reshaded per instant, except the pixels whose shadow lookups read only
+    texels that are the same in every map instant: those are shaded once, whole. The image
+    equals reshading every still pixel at every instant, and rendering every pixel."""
+    from scenes import shadow_stage
+    import warp_blur.methods.accumulation as accumulation
+    path = shadow_stage(scene_path(), occluder_samples={0.5: (-1.0, 1.0, 0.0), 1.5: (1.0, 1.0, 0.0)})
+    kw = dict(frame=1, resolution=(96, 72), samples=16, aovs=(), shadow_map_size=256, spatial_samples=spatial)
+    once = wb.render(path, **kw)
+    assert once.stats["accumulation_still_shading"] == "per instant"
+    assert 0.3 < once.stats["accumulation_steady_pixels"] < 0.99
+    monkeypatch.setattr(accumulation, "STEADY_PIXELS", False)
+    reshaded = wb.render(path, **kw)
+    assert "accumulation_steady_pixels" not in reshaded.stats
+    assert np.abs(once.rgba - reshaded.rgba).max() < 1e-5
+    monkeypatch.setattr(accumulation, "STATIC_TILES", False)
+    every = wb.render(path, **kw)
+    assert np.abs(once.rgba - every.rgba).max() < 1e-5
+    # the moving shadow is there (its pixels were reshaded)
+    assert np.abs(once.rgba - wb.render(path, shadows="off", **kw).rgba).max() > 0.05
+
+
 def test_recorded_hits_stay_within_the_memory_budget(scene_path):
     from scenes import shadow_stage
     path = shadow_stage(scene_path(), occluder_samples={0.5: (-1.0, 1.0, 0.0), 1.5: (1.0, 1.0, 0.0)})

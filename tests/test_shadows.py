@@ -322,13 +322,19 @@ def test_texels_that_never_change_take_one_lookup_for_a_time_span(scene_path, mo
     assert rmse(steady.rgba, render(path, "analytic", shadows="off").rgba) > 0.01   # there is a shadow
 
 
-def test_sharp_instants_build_no_varying_flags(scene_path):
+def test_sharp_instants_build_varying_flags_only_for_still_pixels(scene_path):
     """The flags serve shading over spans of time; accumulation's instants share maps at a few
-    instants (more instants than --shadow-times) and read them as sharp instants, so the frame
-    never builds the flags (they cost tens of ms of serial NumPy)."""
-    path = shadow_stage(scene_path(), occluder_samples=MOVING)
+    instants (more instants than --shadow-times) and read them as sharp instants, so a frame
+    builds the flags (tens of ms of serial NumPy) only where still pixels under still lights can
+    use them to be shaded once: not when the camera moves (nothing is still)."""
+    path = shadow_stage(scene_path(), occluder_samples=MOVING, camera_samples={0.5: (-0.3, 4.0, 4.0),
+                                                                             1.5: (0.3, 4.0, 4.0)})
     shared = render(path, "accumulation", samples=16, shadow_times=4)   # auto: maps shared at 4 instants
     assert shared.stats["shadow_maps_rendered"] > 0 and "shadow_texels_varying" not in shared.stats
+    assert "accumulation_still_pixels" not in shared.stats
+    still_camera = render(shadow_stage(scene_path(), occluder_samples=MOVING), "accumulation", samples=16,
+                          shadow_times=4)
+    assert "shadow_texels_varying" in still_camera.stats and still_camera.stats["accumulation_steady_pixels"] > 0
     assert "shadow_texels_varying" in render(path, "stochastic", shadows="direct").stats
 
 

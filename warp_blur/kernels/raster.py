@@ -13,7 +13,7 @@ from .cutout import cutout_hides
 from .dome import dome_at
 from .kernel_types import Bins, Geometry, Shading, View
 from .rays import entry_alpha, entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin
-from .shading import shade_entry_hit
+from .shading import shade_entry_hit, shadows_steady_at
 
 
 @wp.func
@@ -150,12 +150,17 @@ def render_sharp(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, w
 @wp.kernel(enable_backward=False)
 def shade_recorded(view: View, geo: Geometry, sh: Shading, u: float, weight: float, pixels: wp.array(dtype=int),
                    first: int, rec_e: wp.array2d(dtype=int), rec_hit: wp.array2d(dtype=wp.vec4),
+                   rows: wp.array(dtype=int), use_rows: int,
                    # outputs
                    rgba: wp.array2d(dtype=float)):
     """render_sharp at listed pixels whose visibility is known not to change (recorded at another
-    instant): only the shading at time u (lights, shadows, normals) is redone. geo's entries are
-    all triangles (entry = triangle index), as recorded."""
+    instant): only the shading at time u (lights, shadows, normals) is redone. Thread t reshades
+    listed pixel k = first + t, or with use_rows = 1 pixel k = rows[first + t] (the pixels whose
+    shading changes: record_steady added the others whole). geo's entries are all triangles
+    (entry = triangle index), as recorded."""
     k = first + wp.tid()
+    if use_rows != 0:
+        k = rows[k]
     pix = pixels[k]
     px = pix % view.width
     py = pix // view.width
@@ -179,14 +184,62 @@ def shade_recorded(view: View, geo: Geometry, sh: Shading, u: float, weight: flo
 
 
 @wp.kernel(enable_backward=False)
+def record_steady(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float,
+                  pixels: wp.array(dtype=int), first: int,
+                  # outputs
+                  rgba: wp.array2d(dtype=float), rec_e: wp.array2d(dtype=int), rec_hit: wp.array2d(dtype=wp.vec4),
+                  done: wp.array(dtype=wp.uint8)):
+    """render_sharp with record at listed pixels whose surfaces hold still under lights that hold
+    still (their shadows may not): a pixel whose every sub-sample's shadow lookups read only
+    texels that never change (shadows_steady_at) looks the same at every instant, so it is added
+    whole (weight 1) and marked done[k] = 1 for shade_recorded to skip; the others are added with
+    `weight`, as one instant of many."""
+    k = first + wp.tid()
+    pix = pixels[k]
+    px = pix % view.width
+    py = pix // view.width
+    tile = pixel_tile(view, px, py)
+    n = view.spatial
+    color = wp.vec3(0.0, 0.0, 0.0)
+    cover = float(0.0)
+    steady = int(1)
+    for sy in range(n):
+        for sx in range(n):
+            x = float(px) + (float(sx) + 0.5) / float(n)
+            y = float(py) + (float(sy) + 0.5) / float(n)
+            o = pixel_ray_origin(view, x, y)
+            d = pixel_ray_direction(view, x, y)
+            e, alpha, hit = nearest_entry(view, geo, bins, tile, x, y, o, d, u)
+            tri = int(-1)
+            if e >= 0:
+                tri = geo.entry_tri[e]
+                color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
+                cover = cover + 1.0
+                if steady != 0 and not shadows_steady_at(view, geo, sh, e, u, o, d, hit):
+                    steady = 0
+            else:
+                color = color + dome_at(sh, d, u)
+            rec_e[k, sy * n + sx] = tri
+            rec_hit[k, sy * n + sx] = hit
+    w = weight
+    if steady != 0:
+        w = 1.0
+    done[k] = wp.uint8(steady)
+    add_pixel(rgba, pix, w / float(n * n), color, cover)
+
+
+@wp.kernel(enable_backward=False)
 def record_nearest(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, pixels: wp.array(dtype=int),
                    first: int, shade: int,
                    # outputs
                    rec_e: wp.array2d(dtype=int), rec_hit: wp.array2d(dtype=wp.vec4),
-                   rec_color: wp.array2d(dtype=wp.vec3)):
+                   rec_color: wp.array2d(dtype=wp.vec3), rec_kept: wp.array2d(dtype=wp.uint8)):
     """For listed pixel pixels[first + tid] (row first + tid), each sub-sample's nearest entry at
-    shutter time u: its triangle (-1: none) and hit, and with shade = 1 its radiance then (zero
-    where nothing is hit). Nothing is added to the image: render_over_recorded composites it."""
+    shutter time u: its triangle (-1: none) and hit; with shade = 1 its radiance then (zero where
+    nothing is hit), for every instant; with shade = 2 (still surfaces under still lights whose
+    shadows may change) its radiance where its shadow lookups never change (rec_kept 1:
+    shadows_steady_at), the others to be shaded per instant. Nothing is added to the image:
+    render_over_recorded composites it."""
     k = first + wp.tid()
     pix = pixels[k]
     px = pix % view.width
@@ -202,27 +255,33 @@ def record_nearest(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float,
             e, alpha, hit = nearest_entry(view, geo, bins, tile, x, y, o, d, u)
             tri = int(-1)
             color = wp.vec3(0.0, 0.0, 0.0)
+            kept = int(shade)
             if e >= 0:
                 tri = geo.entry_tri[e]
-                if shade != 0:
+                if shade == 2 and not shadows_steady_at(view, geo, sh, e, u, o, d, hit):
+                    kept = 0
+                if kept != 0:
                     color = shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
             rec_e[k, sy * n + sx] = tri
             rec_hit[k, sy * n + sx] = hit
-            if shade != 0:   # (rec_color holds one element otherwise)
+            if shade != 0:   # (rec_color and rec_kept hold one element otherwise)
                 rec_color[k, sy * n + sx] = color
+                rec_kept[k, sy * n + sx] = wp.uint8(wp.min(kept, 1))
 
 
 @wp.kernel(enable_backward=False)
 def render_over_recorded(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float,
-                         pixels: wp.array(dtype=int), first: int, steady: int, rec_e: wp.array2d(dtype=int),
+                         pixels: wp.array(dtype=int), first: int, kept: int, rec_e: wp.array2d(dtype=int),
                          rec_hit: wp.array2d(dtype=wp.vec4), rec_color: wp.array2d(dtype=wp.vec3),
+                         rec_kept: wp.array2d(dtype=wp.uint8),
                          # outputs
                          rgba: wp.array2d(dtype=float)):
     """render_sharp at listed pixels where a recorded surface (record_nearest over the triangles
     that look the same at every instant) stands behind the triangles that change: only the latter
     are in bins (geo's entries are all triangles, entry = triangle index); each sub-sample shows
     the nearer of the two (equal depths: the lower triangle index, as nearest_entry decides), the
-    recorded one with its recorded radiance when steady = 1, else shaded at u."""
+    recorded one with its recorded radiance where kept = 1 and rec_kept says it was kept, else
+    shaded at u."""
     k = first + wp.tid()
     pix = pixels[k]
     px = pix % view.width
@@ -244,7 +303,7 @@ def render_over_recorded(view: View, geo: Geometry, sh: Shading, bins: Bins, u: 
                 color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
                 cover = cover + 1.0
             elif r >= 0:
-                if steady != 0:
+                if kept != 0 and rec_kept[k, sy * n + sx] != wp.uint8(0):
                     color = color + rec_color[k, sy * n + sx]
                 else:
                     color = color + shade_entry_hit(view, geo, sh, r, 0.0, u, o, d, r_hit)

@@ -20,7 +20,7 @@ from .kernel_types import Geometry, Shading, View
 from .dome import dome_ambient
 from .rays import entry_normal, entry_vertex
 from .light_table import light_value, light_vec
-from .shadow_lookup import light_visibility
+from .shadow_lookup import light_taps_steady, light_visibility
 from .texture_lookup import binding_value
 
 PI = wp.constant(3.14159265358979)
@@ -175,6 +175,61 @@ def normal_mapped(geo: Geometry, sh: Shading, tri: int, binding: int, a: wp.vec3
     return wp.normalize(p)
 
 
+@wp.func(inline=True)
+def view_vector(view: View, p: wp.vec3) -> wp.vec3:
+    """Unit vector from camera-space point p towards the eye."""
+    if view.ortho == 0:
+        return wp.normalize(-p)
+    return wp.vec3(0.0, 0.0, 1.0)
+
+
+# inlined: shade_entry_hit_span's own code before it was shared (no call per shading)
+@wp.func(inline=True)
+def surface_normal(geo: Geometry, sh: Shading, e: int, alpha: float, v: wp.vec3, hit: wp.vec4) -> wp.vec3:
+    """The shading normal at the hit of entry e (interpolation alpha, barycentrics hit[2:4]):
+    interpolated vertex normals where the triangle has them, else its face normal, perturbed by
+    its material's normal map, turned towards the view vector v's side of the face."""
+    tri = geo.entry_tri[e]
+    m = geo.tri_material[tri]
+    wb = hit[2]
+    wc = hit[3]
+    vi = geo.tri_vertices[tri]
+    a = entry_vertex(geo, e, vi[0], alpha)
+    b = entry_vertex(geo, e, vi[1], alpha)
+    c = entry_vertex(geo, e, vi[2], alpha)
+    ng = wp.normalize(wp.cross(b - a, c - a))
+    flags = geo.tri_flags[tri]
+    n = ng
+    if (flags & 2) != 0:
+        ns = (1.0 - wb - wc) * entry_normal(geo, e, vi[0], alpha) + wb * entry_normal(geo, e, vi[1], alpha) + wc * entry_normal(geo, e, vi[2], alpha)
+        if wp.length(ns) > 0.0:
+            n = wp.normalize(ns)
+    if sh.materials[m, 22] >= 0.0 and geo.tri_uvs.shape[0] >= 3 * tri + 3:
+        n = normal_mapped(geo, sh, tri, int(sh.materials[m, 22]), a, b, c, n, wb, wc)
+    if wp.dot(ng, v) < 0.0:
+        n = -n
+    return n
+
+
+@wp.func
+def shadows_steady_at(view: View, geo: Geometry, sh: Shading, e: int, u: float, o: wp.vec3, d: wp.vec3,
+                      hit: wp.vec4) -> bool:
+    """True when every shadowing light's lookup from the hit of static entry e reads, at time u,
+    only texels that never change over the frame's map instants (the flags in sh.shadow_varying,
+    when they are the maps' own: shape (slots, S, S)); under lights that hold still, the hit's
+    radiance is then the same at every instant."""
+    if sh.shadow_varying.shape[1] != sh.shadow_size or sh.shadow_times <= 1:
+        return False
+    p = o + d * hit[1]
+    n = surface_normal(geo, sh, e, 0.0, view_vector(view, p), hit)
+    for j in range(sh.num_lights):
+        if sh.shadow_lights[j, 0] >= 0:
+            # one texel of margin: the lookups use the light's frame tabled per map instant
+            if not light_taps_steady(sh, j, u, p, n, 1):
+                return False
+    return True
+
+
 @wp.func
 def shade_entry_hit(view: View, geo: Geometry, sh: Shading, e: int, alpha: float, u: float,
                     o: wp.vec3, d: wp.vec3, hit: wp.vec4) -> wp.vec3:
@@ -219,24 +274,9 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
     if wp.length(diffuse) == 0.0 and wp.length(f0) == 0.0:
         return emissive
     vi = geo.tri_vertices[tri]
-    a = entry_vertex(geo, e, vi[0], alpha)
-    b = entry_vertex(geo, e, vi[1], alpha)
-    c = entry_vertex(geo, e, vi[2], alpha)
     p = o + d * hit[1]
-    v = wp.vec3(0.0, 0.0, 1.0)
-    if view.ortho == 0:
-        v = wp.normalize(-p)
-    ng = wp.normalize(wp.cross(b - a, c - a))
-    flags = geo.tri_flags[tri]
-    n = ng
-    if (flags & 2) != 0:
-        ns = (1.0 - wb - wc) * entry_normal(geo, e, vi[0], alpha) + wb * entry_normal(geo, e, vi[1], alpha) + wc * entry_normal(geo, e, vi[2], alpha)
-        if wp.length(ns) > 0.0:
-            n = wp.normalize(ns)
-    if sh.materials[m, 22] >= 0.0 and geo.tri_uvs.shape[0] >= 3 * tri + 3:
-        n = normal_mapped(geo, sh, tri, int(sh.materials[m, 22]), a, b, c, n, wb, wc)
-    if wp.dot(ng, v) < 0.0:
-        n = -n
+    v = view_vector(view, p)
+    n = surface_normal(geo, sh, e, alpha, v, hit)
     out = emissive + wp.cw_mul(diffuse, dome_ambient(sh, n)) + wp.cw_mul(f0, sh.dome)
     vel = entry_point_velocity(geo, e, vi, hit)
     for j in range(sh.num_lights):

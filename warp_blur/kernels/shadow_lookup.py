@@ -161,14 +161,15 @@ def face_visibility(sh: Shading, f: int, b0: int, b1: int, frac: float, pl: wp.v
 
 
 @wp.func
-def face_steady(sh: Shading, f: int, pl: wp.vec3, nl: wp.vec3) -> int:
+def face_steady(sh: Shading, f: int, pl: wp.vec3, nl: wp.vec3, margin: int) -> int:
     """1 when the lookup of light-local point pl in face f reads only texels whose depth is the
-    same at every instant, 0 when one varies, -1 when the point is outside the face."""
+    same at every instant (and so do those within `margin` texels of them), 0 when one varies, -1
+    when the point is outside the face."""
     c = face_coords(sh, f, pl, nl)
     if c[3] == 0.0:
         return -1
     s = sh.shadow_size
-    r = sh.shadow_pcf
+    r = sh.shadow_pcf + margin
     i0 = int(wp.floor(c[0]))
     j0 = int(wp.floor(c[1]))
     for j in range(j0 - r, j0 + r + 2):
@@ -184,6 +185,14 @@ def light_steady(sh: Shading, j: int, u: float, p: wp.vec3, n: wp.vec3) -> bool:
     change over the shutter: its visibility is then the same at every instant."""
     if sh.shadow_lights[j, 3] != 1:
         return False
+    return light_taps_steady(sh, j, u, p, n, 0)
+
+
+@wp.func
+def light_taps_steady(sh: Shading, j: int, u: float, p: wp.vec3, n: wp.vec3, margin: int) -> bool:
+    """True when every sample's lookup of light j (its frame at time u) from p, normal n, reads
+    only texels whose depth is the same in all the maps' instants (sh.shadow_varying), and so do
+    those within `margin` texels of them (room for rounding between frames computed apart)."""
     first = sh.shadow_lights[j, 0]
     num_faces = sh.shadow_lights[j, 2]
     axes = light_axes(sh, j, u)
@@ -192,7 +201,7 @@ def light_steady(sh: Shading, j: int, u: float, p: wp.vec3, n: wp.vec3) -> bool:
     for m in range(sh.shadow_lights[j, 1]):
         base = first + m * num_faces
         for f in range(num_faces):
-            st = face_steady(sh, base + f, pl, nl)
+            st = face_steady(sh, base + f, pl, nl, margin)
             if st == 0:
                 return False
             if st == 1:

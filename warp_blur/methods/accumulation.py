@@ -27,10 +27,12 @@ from .frame import FrameContext
 STATIC_TILES = True
 #: tests switch this off to compare against rasterising every triangle in the moving tiles
 MOVING_SPLIT = True
+#: tests switch this off to compare against reshading every still pixel at every instant
+STEADY_PIXELS = True
 #: bytes per recorded hit (triangle index and (hit, depth, barycentrics)), held for the frame
 RECORD_BYTES = 4 + 16
-#: bytes per recorded radiance (moving tiles under steady shading)
-COLOR_BYTES = 12
+#: bytes per recorded radiance and its flag (moving tiles under still lights)
+COLOR_BYTES = 13
 
 
 def instants(n: int) -> np.ndarray:
@@ -46,12 +48,14 @@ class MovingTiles:
     are the same at every instant); needed (T,) bool:
     the triangles that can show in those tiles (the moving ones and still ones whose box meets
     a moving tile); changing (T,) bool: the triangles that move, change visibility or have
-    fractional opacity (the others look the same at every instant)."""
+    fractional opacity (the others look the same at every instant); lights_still: the lights
+    are the same at every instant (their shadows may not be)."""
 
     pixels: np.ndarray
     steady: bool
     needed: np.ndarray
     changing: np.ndarray
+    lights_still: bool = False
 
 
 def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
@@ -84,17 +88,19 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
         np.add.at(marks, (ty1, tx0), -1)
         np.add.at(marks, (ty1, tx1), 1)
 
+    lights_still = True
     for u in us[1:]:
         snap = ctx.snapshot(float(u), with_normals=False)
         if snap.positions.shape != first.positions.shape:
             return None
-        steady &= np.array_equal(snap.lights, first.lights)
+        lights_still &= np.array_equal(snap.lights, first.lights)
         same_v = (snap.positions == first.positions).all(axis=1)
         same_t = visible(snap) == visible(first)
         still_v &= same_v
         same_vis &= same_t
         differ = ~(same_t & same_v[scene.tri_vertices].all(axis=1))
         mark(snap.positions, np.nonzero(differ & visible(snap))[0])
+    steady &= lights_still
     still = same_vis & still_v[scene.tri_vertices].all(axis=1) & ~scene.tri_fractional
     if not still.any():
         return None
@@ -109,7 +115,7 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
     touched = (integral[ty1, tx1] - integral[ty0, tx1] - integral[ty1, tx0] + integral[ty0, tx0]) > 0
     needed = ~still
     needed[kept[touched]] = True
-    return MovingTiles(np.nonzero(pixel_moving.ravel())[0], bool(steady), needed, ~still)
+    return MovingTiles(np.nonzero(pixel_moving.ravel())[0], bool(steady), needed, ~still, bool(lights_still))
 
 
 def tile_rects(ctx: FrameContext, positions: np.ndarray, tris: np.ndarray, with_kept: bool = False):
@@ -147,11 +153,18 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
         if still_bytes > budget:
             plan = None
         else:
-            moving_bytes = len(plan.pixels) * subs * (RECORD_BYTES + (COLOR_BYTES if plan.steady else 0))
+            moving_bytes = len(plan.pixels) * subs * (RECORD_BYTES + (COLOR_BYTES if plan.lights_still else 0))
             split = MOVING_SPLIT and (plan.needed & ~plan.changing).any() and still_bytes + moving_bytes <= budget
     # each pass's host work (snapshot, binning, uploads, shadow maps) is done on a helper thread
     # while the pass before it renders
-    run_prepared(_passes(ctx, us, plan, split, rgba))
+    recorded: list = []
+    # still surfaces under still lights whose shadows move: the maps' varying-texel flags tell
+    # which of their pixels never change (built only then: they cost tens of ms of NumPy)
+    ctx.instant_flags = plan is not None and STEADY_PIXELS and plan.lights_still and not plan.steady
+    run_prepared(_passes(ctx, us, plan, split, rgba, recorded))
+    done = [h.done for h in recorded if h is not None and h.done is not None]
+    if done:   # the still pixels found to look the same at every instant, shaded once
+        ctx.counters["accumulation_steady_pixels"] = float(done[0].numpy().mean())
     if plan is not None:
         ctx.counters["accumulation_still_pixels"] = 1.0 - len(plan.pixels) / ctx.num_pixels
         ctx.counters["accumulation_still_shading"] = "once" if plan.steady else "per instant"
@@ -161,11 +174,12 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
 
 
 def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None, split: bool,
-            rgba: wp.array) -> Iterator[Callable[[], None]]:
+            rgba: wp.array, recorded: list) -> Iterator[Callable[[], None]]:
     """The frame's passes in order, each prepared when asked for (frame.prepare_sharp_pass): with
     a plan, still tiles once (steady) or found once and reshaded per instant, and the moving
     tiles at every instant (with split, the still triangles there found once, and only the
-    changing ones rasterised per instant); without one, every pixel at every instant."""
+    changing ones rasterised per instant); without one, every pixel at every instant. The still
+    tiles' recorded hits are appended to `recorded`."""
     n = len(us)
     if plan is None:
         for snap in _snapshots(ctx, us):
@@ -183,14 +197,18 @@ def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None, split: 
         if i == 0 and plan.steady:   # still tiles look the same at every instant: once, at full weight
             run, _ = ctx.prepare_sharp_pass(snap, 1.0, rgba, still_px)
         elif i == 0:                 # still tiles see the same surfaces: find them once, shade per instant
-            run, hits = ctx.prepare_sharp_pass(snap, 1.0 / n, rgba, still_px, record=True)
+            # (under still lights, a pixel whose shadow lookups never change is shaded once)
+            run, hits = ctx.prepare_sharp_pass(snap, 1.0 / n, rgba, still_px, record=True,
+                                               whole_if_steady=STEADY_PIXELS and plan.lights_still)
+            recorded.append(hits)
         elif hits is not None:
             run = ctx.prepare_reshade_pass(snap, hits, 1.0 / n, rgba)
         if run is not None:
             yield run
         if split:
             if i == 0:   # the still triangles' nearest hit in the moving tiles, once
-                run, behind = ctx.prepare_record_pass(snap, plan.pixels, plan.needed & ~plan.changing, plan.steady)
+                keep = 1 if plan.steady else (2 if STEADY_PIXELS and plan.lights_still else 0)
+                run, behind = ctx.prepare_record_pass(snap, plan.pixels, plan.needed & ~plan.changing, keep)
                 yield run
             run = ctx.prepare_over_recorded_pass(snap, behind, plan.changing, 1.0 / n, rgba)
         else:

@@ -18,7 +18,8 @@ from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_
 from ..kernels.kernel_types import Geometry
 from ..core import progress
 from ..core.parallel import FINE_BANDS, launch_pixels
-from ..kernels.raster import record_nearest, render_depth_motion, render_over_recorded, render_sharp, shade_recorded
+from ..kernels.raster import (record_nearest, record_steady, render_depth_motion, render_over_recorded, render_sharp,
+                              shade_recorded)
 from ..usd.scene import Scene, Snapshot
 from ..core.settings import RenderSettings
 from ..shadows.layout import Sample, ShadowOptions
@@ -46,6 +47,10 @@ class RecordedHits:
     entries: wp.array
     hits: wp.array
     colors: wp.array | None = None   # (P, subsamples) vec3 radiance at the recording instant, when kept
+    done: wp.array | None = None     # (P,) uint8: 1 where the pixel was added whole (record_steady)
+    kept: wp.array | None = None     # (P, subsamples) uint8: 1 where `colors` holds every instant's radiance
+    pending: wp.array | None = None  # rows whose done flag is 0, found once the recording has run
+    pending_count: int = 0
 
 
 @dataclass
@@ -64,6 +69,9 @@ class FrameContext:
     _velocities: tuple | None = None   # (snapshot time, (V, 3) velocities) of the last sharp instant
     neighbour: Snapshot | None = None   # an adjacent sharp instant's snapshot (accumulation sets it)
     _shading_last: tuple | None = None   # (time, Shading) of the last instant shaded
+    _per_triangle_last: tuple | None = None   # (snapshot, Geometry) of the last per_triangle_geometry
+    #: sharp instants' Shading carries the maps' varying-texel flags (record_steady reads them)
+    instant_flags: bool = False
     probe_snapshots: dict = field(default_factory=dict)   # shutter fraction -> Snapshot (static_frame's)
     instants: int = 1   # sharp instants this frame will shade (accumulation sets it)
 
@@ -188,7 +196,7 @@ class FrameContext:
         # a sharp instant reads one or two map instants: each instant's images whole in memory
         sh = make_shading(self.scene.material_table, lights, self.scene.dome, self.device, shadows,
                           self.shadow_options(), self.scene.materials.textures, self.dome_frame(one),
-                          instant_major=len(snapshots) == 1)
+                          instant_major=len(snapshots) == 1, instant_flags=self.instant_flags)
         if len(snapshots) == 1:
             self._shading_last = (snapshots[0].time, sh)
         return sh
@@ -300,10 +308,15 @@ class FrameContext:
 
     def prepare_sharp_pass(self, snapshot: Snapshot, weight: float, rgba: wp.array, pixels: np.ndarray | None = None,
                            record: bool = False, triangles: np.ndarray | None = None,
-                           cull: bool = True) -> "tuple[Callable[[], None] | None, RecordedHits | None]":
+                           cull: bool = True, whole_if_steady: bool = False
+                           ) -> "tuple[Callable[[], None] | None, RecordedHits | None]":
         """sharp_pass in two steps: everything up to the launch now, and (run, hits): run()
         launches it (None: nothing to render); with record, hits (RecordedHits) hold the listed
-        pixels' hits once run() has returned."""
+        pixels' hits once run() has returned. whole_if_steady (with record and pixels, for still
+        surfaces under lights that hold still): pixels whose shadow lookups read only texels that
+        never change are added at weight 1 and marked done (record_steady)."""
+        if whole_if_steady and record and pixels is not None and len(pixels):
+            return self._prepare_record_steady(snapshot, weight, rgba, pixels, triangles, cull)
         if pixels is not None and len(pixels) == 0:
             return None, None
         sh = self.shading([snapshot])
@@ -327,32 +340,75 @@ class FrameContext:
                               self.settings.threads, bands_per_thread=FINE_BANDS)
         return run, (RecordedHits(view, listed, rec_e, rec_hit) if record else None)
 
+    def _prepare_record_steady(self, snapshot: Snapshot, weight: float, rgba: wp.array, pixels: np.ndarray,
+                               triangles: np.ndarray | None, cull: bool) -> "tuple[Callable[[], None], RecordedHits]":
+        sh = self.shading([snapshot])
+        geo, bins = self.static_geometry([snapshot], 0, triangles, self.receiver_velocities(snapshot), cull)
+        view, b = self.view(bins), make_bins(bins, self.device)
+        u = self.snapshot_fraction(snapshot)
+        dev = self.device
+        listed = wp.array(pixels.astype(np.int32), dtype=int, device=dev)
+        subs = self.settings.spatial_samples ** 2
+        rec_e = wp.zeros((len(pixels), subs), dtype=int, device=dev)
+        rec_hit = wp.zeros((len(pixels), subs), dtype=wp.vec4, device=dev)
+        done = wp.zeros(len(pixels), dtype=wp.uint8, device=dev)
+
+        def run() -> None:
+            with self.timed("render"):
+                launch_pixels(record_steady, len(pixels),
+                              lambda first, _n: [view, geo, sh, b, u, weight, listed, first, rgba, rec_e, rec_hit,
+                                                 done], dev, self.settings.threads, bands_per_thread=FINE_BANDS)
+        return run, RecordedHits(view, listed, rec_e, rec_hit, done=done)
+
+    def per_triangle_geometry(self, snapshot: Snapshot) -> Geometry:
+        """The instant's Geometry with every triangle an entry (entry = triangle index), static at
+        its one knot: what recorded hits index. The last one is kept, since an instant's reshade
+        and moving-tile passes both use it."""
+        last = self._per_triangle_last
+        if last is not None and last[0] is snapshot:
+            return last[1]
+        tris = np.arange(self.scene.num_triangles, dtype=np.int32)
+        k = np.zeros(len(tris), np.int32)
+        normals = snapshot.normals[None] if self.scene.any_smooth else None
+        geo = make_geometry(self.tables, snapshot.positions[None], normals, tris, k, k,
+                            self.receiver_velocities(snapshot))
+        self._per_triangle_last = (snapshot, geo)
+        return geo
+
     def prepare_reshade_pass(self, snapshot: Snapshot, hits: "RecordedHits", weight: float,
                              rgba: wp.array) -> Callable[[], None]:
         """A pass that, run, adds weight × the sharp image of one instant at the recorded pixels,
         whose visibility does not change: their recorded hits shaded with this instant's lights
         and shadows."""
-        tris = np.arange(self.scene.num_triangles, dtype=np.int32)
-        k = np.zeros(len(tris), np.int32)
-        normals = snapshot.normals[None] if self.scene.any_smooth else None
         sh = self.shading([snapshot])
-        geo = make_geometry(self.tables, snapshot.positions[None], normals, tris, k, k,
-                            self.receiver_velocities(snapshot))   # entry = triangle
+        geo = self.per_triangle_geometry(snapshot)
         u = self.snapshot_fraction(snapshot)
 
         def run() -> None:
+            rows, count = hits.pixels, hits.pixels.shape[0]
+            if hits.done is not None:   # recorded by now: only the pixels not added whole
+                if hits.pending is None:
+                    pending = np.nonzero(hits.done.numpy() == 0)[0].astype(np.int32)
+                    hits.pending = wp.array(pending, dtype=int, device=self.device) if len(pending) else None
+                    hits.pending_count = len(pending)
+                rows, count = hits.pending, hits.pending_count
+            if count == 0:
+                return
+            use_rows = 1 if hits.done is not None else 0
             with self.timed("render"):
-                launch_pixels(shade_recorded, hits.pixels.shape[0],
+                launch_pixels(shade_recorded, count,
                               lambda first, _n: [hits.view, geo, sh, u, weight, hits.pixels, first, hits.entries,
-                                                 hits.hits, rgba], self.device, self.settings.threads,
+                                                 hits.hits, rows, use_rows, rgba], self.device, self.settings.threads,
                               bands_per_thread=FINE_BANDS)
         return run
 
     def prepare_record_pass(self, snapshot: Snapshot, pixels: np.ndarray, triangles: np.ndarray,
-                            shade: bool) -> "tuple[Callable[[], None], RecordedHits]":
+                            shade: int) -> "tuple[Callable[[], None], RecordedHits]":
         """(run, hits): run() records, at the listed pixels (flat indices), each sub-sample's nearest
-        hit at this instant among `triangles` (a (T,) mask) and, with shade, its radiance then;
-        nothing is added to the image (prepare_over_recorded_pass composites it)."""
+        hit at this instant among `triangles` (a (T,) mask) and, with shade = 1, its radiance then
+        (for every instant), with shade = 2 (still lights, shadows that may change) its radiance
+        where its shadow lookups never change; nothing is added to the image
+        (prepare_over_recorded_pass composites it)."""
         sh = self.shading([snapshot])
         geo, bins = self.static_geometry([snapshot], 0, triangles, self.receiver_velocities(snapshot))
         view, b = self.view(bins), make_bins(bins, self.device)
@@ -362,22 +418,24 @@ class FrameContext:
         subs = self.settings.spatial_samples ** 2
         rec_e = wp.zeros((len(pixels), subs), dtype=int, device=dev)
         rec_hit = wp.zeros((len(pixels), subs), dtype=wp.vec4, device=dev)
-        rec_color = wp.zeros((len(pixels), subs) if shade else (1, 1), dtype=wp.vec3, device=dev)
+        shape = (len(pixels), subs) if shade else (1, 1)
+        rec_color = wp.zeros(shape, dtype=wp.vec3, device=dev)
+        rec_kept = wp.zeros(shape, dtype=wp.uint8, device=dev)
 
         def run() -> None:
             with self.timed("render"):
                 launch_pixels(record_nearest, len(pixels),
-                              lambda first, _n: [view, geo, sh, b, u, listed, first, 1 if shade else 0, rec_e,
-                                                 rec_hit, rec_color], dev, self.settings.threads,
-                              bands_per_thread=FINE_BANDS)
-        return run, RecordedHits(view, listed, rec_e, rec_hit, rec_color if shade else None)
+                              lambda first, _n: [view, geo, sh, b, u, listed, first, shade, rec_e, rec_hit, rec_color,
+                                                 rec_kept], dev, self.settings.threads, bands_per_thread=FINE_BANDS)
+        return run, RecordedHits(view, listed, rec_e, rec_hit, rec_color if shade else None,
+                                 kept=rec_kept if shade else None)
 
     def prepare_over_recorded_pass(self, snapshot: Snapshot, hits: "RecordedHits", triangles: np.ndarray,
                                    weight: float, rgba: wp.array) -> "Callable[[], None] | None":
         """A pass that, run, adds weight × the sharp image of one instant at the recorded pixels,
         where the recorded surfaces (prepare_record_pass) stand still and only `triangles` (a (T,)
         mask) change: those are rasterised and the nearer of them and the recorded hit shown (the
-        recorded one with its recorded radiance when hits.colors is set, else shaded now). Equal
+        recorded one with its recorded radiance where hits.kept says so, else shaded now). Equal
         to sharp_pass over both sets, at the cost of rasterising the changing ones only."""
         sc = self.scene
         tris = np.nonzero(snapshot.tri_visible & triangles)[0].astype(np.int32)
@@ -395,24 +453,21 @@ class FrameContext:
             bands[tris] = bins.entry_bands
         bins.tile_entries = tris[bins.tile_entries].astype(np.int32)
         bins.entry_boxes, bins.entry_bands = boxes, bands
-        all_tris = np.arange(num, dtype=np.int32)
-        zero = np.zeros(num, np.int32)
-        normals = snapshot.normals[None] if sc.any_smooth else None
-        geo = make_geometry(self.tables, snapshot.positions[None], normals, all_tris, zero, zero,
-                            self.receiver_velocities(snapshot))
+        geo = self.per_triangle_geometry(snapshot)
         sh = self.shading([snapshot])
         b = make_bins(bins, self.device)
         u = self.snapshot_fraction(snapshot)
-        steady = 1 if hits.colors is not None else 0
+        kept = 1 if hits.colors is not None else 0
         colors = hits.colors if hits.colors is not None else wp.zeros((1, 1), dtype=wp.vec3, device=self.device)
+        kept_flags = hits.kept if hits.kept is not None else wp.zeros((1, 1), dtype=wp.uint8, device=self.device)
 
         view = self.view(bins)
 
         def run() -> None:
             with self.timed("render"):
                 launch_pixels(render_over_recorded, hits.pixels.shape[0],
-                              lambda first, _n: [view, geo, sh, b, u, weight, hits.pixels, first, steady,
-                                                 hits.entries, hits.hits, colors, rgba], self.device,
+                              lambda first, _n: [view, geo, sh, b, u, weight, hits.pixels, first, kept,
+                                                 hits.entries, hits.hits, colors, kept_flags, rgba], self.device,
                               self.settings.threads, bands_per_thread=FINE_BANDS)
         return run
 

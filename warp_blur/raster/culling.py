@@ -58,7 +58,10 @@ def hidden_back_faces(positions: np.ndarray, tri_vertices: np.ndarray, tri_objec
     out = np.zeros(len(entry_tri), bool)
     if orthographic or len(entry_tri) == 0 or not closed.any():
         return out
-    sign = instance_volume_sign(positions, tri_vertices, tri_object, closed, near, far)
+    # signs only of the instances the entries belong to (a few moving ones of many, per instant)
+    listed = np.zeros(int(tri_object.max()) + 1, bool)
+    listed[tri_object[entry_tri]] = True
+    sign = instance_volume_sign(positions, tri_vertices, tri_object, closed & listed[tri_object], near, far)
     s = sign[tri_object[entry_tri]]
     cand = np.nonzero(s != 0)[0]
     if len(cand) == 0:

@@ -187,7 +187,8 @@ def _materials_array(materials: np.ndarray, device: str) -> wp.array:
 
 
 def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, device: str,
-                 shadows=None, options=None, textures=None, dome_frame=None, instant_major: bool = False) -> Shading:
+                 shadows=None, options=None, textures=None, dome_frame=None, instant_major: bool = False,
+                 instant_flags: bool = False) -> Shading:
     """lights: (L+1, NL, LIGHT_WIDTH) tables at L+1 knots over the shutter; shadows: a
     shadows.layout.ShadowData (or None: no light casts shadows) with its ShadowOptions; textures:
     the frame's textures.TextureSet (None: none); dome_frame: a textured dome as
@@ -195,7 +196,9 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
     shutter (one when it holds), irradiance SH (9, 3), lod), or None. instant_major: the maps'
     memory holds each map instant's depth image whole (for a sharp instant, which reads one or
     two of them) instead of each texel's instants side by side (for shading at many times per
-    pixel); the kernels index both alike (see shadow_map_array)."""
+    pixel); the kernels index both alike (see shadow_map_array). instant_flags (with
+    instant_major): the maps' varying-texel flags too, which a sharp instant reads only to find
+    the still pixels whose shadows never change (accumulation.py; they cost tens of ms of NumPy)."""
     s = Shading()
     s.tex = texture_arrays(textures, device)
     if dome_frame is None:
@@ -232,7 +235,8 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
         s.shadow_frames = wp.zeros((1, 12), dtype=float, device=device)
     else:
         # maps shared by many instants (accumulation) are uploaded once, not once per instant
-        cached = shadows.device_arrays.get((device, instant_major))
+        key = (device, instant_major, instant_major and instant_flags)
+        cached = shadows.device_arrays.get(key)
         laid = shadows.texel_major if not instant_major else None
         if cached is None and laid is not None:
             # laid out while the maps rendered (shadows/texel_major.py): the CPU reads it as it is
@@ -243,19 +247,19 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
             if shadows.counters is not None:
                 shadows.counters["shadow_texels_varying"] = float(laid.varying.mean()) if laid.varying.size else 0.0
             cached = (dev_maps, dev_varying, wp.array(faces, dtype=float, device=device), slot_lights)
-            shadows.device_arrays[(device, instant_major)] = cached
+            shadows.device_arrays[key] = cached
         if cached is None:
             # on the CPU the maps are laid out straight into the device array (no second copy)
             dev_maps = wp.empty(slot_map_shape(shadows, instant_major), dtype=float, device=device)
             on_host = wp.get_device(device).is_cpu
             maps, faces, varying, slot_lights = face_slots(shadows, dev_maps.numpy() if on_host else None,
-                                                           instant_major)
+                                                           instant_major, instant_flags)
             if not on_host:
                 dev_maps.assign(maps)
             varying = varying if varying is not None else np.ones((1, 1, 1), np.uint8)
             cached = (shadow_map_array(dev_maps, instant_major), wp.array(varying, dtype=wp.uint8, device=device),
                       wp.array(faces, dtype=float, device=device), slot_lights)
-            shadows.device_arrays[(device, instant_major)] = cached
+            shadows.device_arrays[key] = cached
         s.shadow_maps, s.shadow_varying, s.shadow_faces, slot_lights = cached
         info = np.zeros((len(shadows.lights), 4), np.int32)
         info[:, :3] = slot_lights
@@ -311,18 +315,17 @@ def slot_faces(data) -> tuple[np.ndarray, np.ndarray]:
     return faces, lights
 
 
-def face_slots(data, out: np.ndarray | None = None,
-               instant_major: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+def face_slots(data, out: np.ndarray | None = None, instant_major: bool = False,
+               instant_flags: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
     """The kernels' layout of a frame's maps (a shadows.layout.ShadowData): (maps (slots, S, S, B)
     float32 with each face's B instants side by side, or (slots, B, S, S) with each instant's image
     whole when instant_major, written into `out` when given, faces and lights (slot_faces),
-    varying (slots, S, S) uint8 or None (one instant, or instant_major: a sharp instant reads no
-    flags))."""
+    varying (slots, S, S) uint8 or None (one instant, or instant_major without instant_flags))."""
     b, s = data.times, data.size
     shape = slot_map_shape(data, instant_major)
     maps = out if out is not None else np.empty(shape, np.float32)
     faces, lights = slot_faces(data)
-    varying = np.zeros((shape[0], s, s), np.uint8) if b > 1 and not instant_major else None
+    varying = np.zeros((shape[0], s, s), np.uint8) if b > 1 and (instant_flags or not instant_major) else None
     for (first, m, f), k in zip(data.lights, lights[:, 0]):
         if first < 0:
             continue
@@ -332,7 +335,7 @@ def face_slots(data, out: np.ndarray | None = None,
             maps[k:k + m * f].reshape(m, f, b, s, s)[...] = block.transpose(0, 2, 1, 3, 4)
         else:
             maps[k:k + m * f].reshape(m, f, s, s, b)[...] = block.transpose(0, 2, 3, 4, 1)   # no temporary
-        if varying is not None:   # flags for spans of time (a sharp instant reads none)
+        if varying is not None:   # flags for spans of time, and for instants that look alike
             varying[k:k + m * f] = data.varying[first:first + n].reshape(m, b, f, s, s)[:, 0].reshape(m * f, s, s)
     return maps, faces, varying, lights
 
