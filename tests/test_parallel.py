@@ -88,3 +88,32 @@ def test_a_background_failure_reaches_the_caller():
 
     with pytest.raises(ValueError, match="bad maps"):
         Background(job, "test").result()
+
+
+def _cap_seen_by_steps(prep_s: float, run_s: list[float]) -> list:
+    """The launch cap each step of run_prepared sees, for steps prepared in prep_s seconds
+    each and run for run_s[i] seconds."""
+    import time
+    from warp_blur.core import parallel
+    seen = []
+
+    def steps():
+        for ran in run_s:
+            time.sleep(prep_s)
+            yield lambda ran=ran: (seen.append(getattr(parallel._launch_cap, "threads", None)), time.sleep(ran))
+    run_prepared(steps())
+    assert getattr(parallel._launch_cap, "threads", None) is None   # never left behind
+    return seen
+
+
+def test_passes_leave_the_preparing_helper_a_core_only_while_it_is_the_bottleneck(monkeypatch):
+    from warp_blur.core import parallel
+    monkeypatch.setattr(parallel, "default_threads", lambda: 4)
+    # preparing (40 ms) outlasts running (~0): from the third pass on, kernels get 3 of 4 threads
+    seen = _cap_seen_by_steps(0.04, [0.0] * 6)
+    assert seen[:2] == [None, None] and seen[3:] == [3, 3, 3]
+    # running (60 ms) outlasts preparing (~0): never capped
+    assert _cap_seen_by_steps(0.0, [0.06] * 5) == [None] * 5
+    # capped passes that then run over twice as long as a preparation get every thread back
+    seen = _cap_seen_by_steps(0.03, [0.0, 0.0, 0.0, 0.1, 0.1, 0.0])
+    assert seen[3] == 3 and seen[5] is None

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import threading
+import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, Generic, Iterable, TypeVar
 
@@ -17,6 +18,9 @@ _pools: dict[tuple[str, int], ThreadPoolExecutor] = {}
 _pools_lock = threading.Lock()
 #: the pool family of the current thread: a Background job's launches get pools of their own
 _family = threading.local()
+#: the current thread's cap on launch_pixels' threads (run_prepared sets it while its helper's
+#: preparation, not the kernels, holds the passes back)
+_launch_cap = threading.local()
 T = TypeVar("T")
 
 #: bands per thread for pixel kernels whose cost varies strongly across the image (every pixel
@@ -88,16 +92,46 @@ def run_prepared(steps: Iterable[Callable[[], None]]) -> None:
     """Call the callables `steps` yields, in order, while a helper thread advances the iterable
     to the next one: the host-side preparation of a pass (NumPy, uploads) overlaps the previous
     pass's kernels instead of leaving the cores idle between them. The iterable is only ever
-    advanced by the helper, one step at a time, so whatever state it keeps changes in order."""
+    advanced by the helper, one step at a time, so whatever state it keeps changes in order.
+
+    When preparing a pass takes longer than running one (twice in a row: short passes over a
+    large scene, e.g. accumulation's moving tiles), the passes' kernels leave the helper a core
+    (launch_pixels gets one thread fewer) instead of contending with it for both; once a capped
+    pass runs over twice as long as a preparation, the kernels get every core back."""
     iterator = iter(steps)
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="warp_blur_prepare") as helper:
-        pending = helper.submit(next, iterator, None)
-        while True:
-            step = pending.result()
-            if step is None:
-                return
-            pending = helper.submit(next, iterator, None)
-            step()
+
+    def advance():
+        t0 = time.perf_counter()
+        step = next(iterator, None)
+        return step, time.perf_counter() - t0
+
+    threads = default_threads()
+    slow_preps = 0
+    try:
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="warp_blur_prepare") as helper:
+            pending = helper.submit(advance)
+            while True:
+                step, _ = pending.result()
+                if step is None:
+                    return
+                pending = helper.submit(advance)
+                t0 = time.perf_counter()
+                step()
+                ran = time.perf_counter() - t0
+                if threads <= 1:
+                    continue
+                # still preparing once the pass has run: the preparation is the bottleneck
+                prep = pending.result()[1] if pending.done() else float("inf")
+                capped = getattr(_launch_cap, "threads", None) is not None
+                if not capped:
+                    slow_preps = slow_preps + 1 if prep > ran else 0
+                    if slow_preps >= 2:
+                        _launch_cap.threads = threads - 1
+                elif ran > 2.0 * prep:
+                    _launch_cap.threads = None
+                    slow_preps = 0
+    finally:
+        _launch_cap.threads = None
 
 
 def _band_size(total: int, threads: int, bands_per_thread: int) -> int:
@@ -114,6 +148,9 @@ def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], d
     if num_pixels <= 0:
         return
     threads = threads or default_threads()
+    cap = getattr(_launch_cap, "threads", None)
+    if cap is not None:
+        threads = min(threads, cap)
     if (device != "cpu" or threads == 1) and (max_band is None or num_pixels <= max_band):
         wp.launch(kernel, dim=num_pixels, inputs=inputs(start, num_pixels), device=device)
         return
