@@ -4,7 +4,8 @@ Only the work the scene requires: screen tiles that no moving (or appearing) tri
 any of the N instants see the same surfaces at every instant. Under lights that hold still and
 cast no shadow, or whose shadow maps are the same at every instant (nothing moves in the lights'
 views), they look the same too, and are rendered once; otherwise their visibility is
-found once and only their shading is redone per instant. The other tiles are rendered at every
+found once and only their shading is redone per instant (under lights that hold still, not even
+that where every shadow lookup reads texels that never change). The other tiles are rendered at every
 instant, but only the triangles that change are rasterised there per instant: the nearest of the
 still ones is found once (and shaded once where shading is steady) and shown wherever nothing
 that changes is in front of it. The result is the same average (tested against rendering every

@@ -340,17 +340,23 @@ class FrameContext:
                               self.settings.threads, bands_per_thread=FINE_BANDS)
         return run, (RecordedHits(view, listed, rec_e, rec_hit) if record else None)
 
+    def _recording(self, snapshot: Snapshot, pixels: np.ndarray, triangles: np.ndarray | None, cull: bool = True):
+        """What a pass recording hits at the listed pixels launches with: (Shading, Geometry of
+        `triangles` at this instant, View, Bins, shutter fraction, listed pixels, and zeroed
+        (P, subsamples) triangle and hit records)."""
+        geo, bins = self.static_geometry([snapshot], 0, triangles, self.receiver_velocities(snapshot), cull)
+        dev = self.device
+        subs = self.settings.spatial_samples ** 2
+        return (self.shading([snapshot]), geo, self.view(bins), make_bins(bins, dev), self.snapshot_fraction(snapshot),
+                wp.array(pixels.astype(np.int32), dtype=int, device=dev),
+                wp.zeros((len(pixels), subs), dtype=int, device=dev), wp.zeros((len(pixels), subs), dtype=wp.vec4,
+                                                                                device=dev))
+
     def _prepare_record_steady(self, snapshot: Snapshot, weight: float, rgba: wp.array, pixels: np.ndarray,
                                triangles: np.ndarray | None, cull: bool) -> "tuple[Callable[[], None], RecordedHits]":
-        sh = self.shading([snapshot])
-        geo, bins = self.static_geometry([snapshot], 0, triangles, self.receiver_velocities(snapshot), cull)
-        view, b = self.view(bins), make_bins(bins, self.device)
-        u = self.snapshot_fraction(snapshot)
+        """prepare_sharp_pass's recording pass with whole_if_steady (record_steady)."""
+        sh, geo, view, b, u, listed, rec_e, rec_hit = self._recording(snapshot, pixels, triangles, cull)
         dev = self.device
-        listed = wp.array(pixels.astype(np.int32), dtype=int, device=dev)
-        subs = self.settings.spatial_samples ** 2
-        rec_e = wp.zeros((len(pixels), subs), dtype=int, device=dev)
-        rec_hit = wp.zeros((len(pixels), subs), dtype=wp.vec4, device=dev)
         done = wp.zeros(len(pixels), dtype=wp.uint8, device=dev)
 
         def run() -> None:
@@ -409,16 +415,9 @@ class FrameContext:
         (for every instant), with shade = 2 (still lights, shadows that may change) its radiance
         where its shadow lookups never change; nothing is added to the image
         (prepare_over_recorded_pass composites it)."""
-        sh = self.shading([snapshot])
-        geo, bins = self.static_geometry([snapshot], 0, triangles, self.receiver_velocities(snapshot))
-        view, b = self.view(bins), make_bins(bins, self.device)
-        u = self.snapshot_fraction(snapshot)
+        sh, geo, view, b, u, listed, rec_e, rec_hit = self._recording(snapshot, pixels, triangles)
         dev = self.device
-        listed = wp.array(pixels.astype(np.int32), dtype=int, device=dev)
-        subs = self.settings.spatial_samples ** 2
-        rec_e = wp.zeros((len(pixels), subs), dtype=int, device=dev)
-        rec_hit = wp.zeros((len(pixels), subs), dtype=wp.vec4, device=dev)
-        shape = (len(pixels), subs) if shade else (1, 1)
+        shape = rec_e.shape if shade else (1, 1)
         rec_color = wp.zeros(shape, dtype=wp.vec3, device=dev)
         rec_kept = wp.zeros(shape, dtype=wp.uint8, device=dev)
 
@@ -460,7 +459,6 @@ class FrameContext:
         kept = 1 if hits.colors is not None else 0
         colors = hits.colors if hits.colors is not None else wp.zeros((1, 1), dtype=wp.vec3, device=self.device)
         kept_flags = hits.kept if hits.kept is not None else wp.zeros((1, 1), dtype=wp.uint8, device=self.device)
-
         view = self.view(bins)
 
         def run() -> None:
