@@ -91,6 +91,21 @@ def to_raster(view: View, p: wp.vec3) -> wp.vec3:
     return wp.vec3(rx, ry, 1.0)
 
 
+# inlined: the body of every sharp pass's sub-sample loop
+@wp.func(inline=True)
+def subsample_nearest(view: View, geo: Geometry, bins: Bins, tile: int, px: int, py: int, sx: int, sy: int,
+                      u: float):
+    """(ray origin, direction, nearest_entry's (entry, alpha, hit)) of sub-sample (sx, sy) of the
+    view's n×n grid in pixel (px, py) (tile: the pixel's), at shutter time u."""
+    n = view.spatial
+    x = float(px) + (float(sx) + 0.5) / float(n)
+    y = float(py) + (float(sy) + 0.5) / float(n)
+    o = pixel_ray_origin(view, x, y)
+    d = pixel_ray_direction(view, x, y)
+    e, alpha, hit = nearest_entry(view, geo, bins, tile, x, y, o, d, u)
+    return o, d, e, alpha, hit
+
+
 @wp.func
 def sharp_pixel(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float, pix: int,
                 rgba: wp.array2d(dtype=float), record: int, row: int, rec_e: wp.array2d(dtype=int),
@@ -105,11 +120,7 @@ def sharp_pixel(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, we
     cover = float(0.0)
     for sy in range(n):
         for sx in range(n):
-            x = float(px) + (float(sx) + 0.5) / float(n)
-            y = float(py) + (float(sy) + 0.5) / float(n)
-            o = pixel_ray_origin(view, x, y)
-            d = pixel_ray_direction(view, x, y)
-            e, alpha, hit = nearest_entry(view, geo, bins, tile, x, y, o, d, u)
+            o, d, e, alpha, hit = subsample_nearest(view, geo, bins, tile, px, py, sx, sy, u)
             if record != 0:
                 tri = int(-1)
                 if e >= 0:
@@ -205,11 +216,7 @@ def record_steady(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, 
     steady = int(1)
     for sy in range(n):
         for sx in range(n):
-            x = float(px) + (float(sx) + 0.5) / float(n)
-            y = float(py) + (float(sy) + 0.5) / float(n)
-            o = pixel_ray_origin(view, x, y)
-            d = pixel_ray_direction(view, x, y)
-            e, alpha, hit = nearest_entry(view, geo, bins, tile, x, y, o, d, u)
+            o, d, e, alpha, hit = subsample_nearest(view, geo, bins, tile, px, py, sx, sy, u)
             tri = int(-1)
             if e >= 0:
                 tri = geo.entry_tri[e]
@@ -248,11 +255,7 @@ def record_nearest(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float,
     n = view.spatial
     for sy in range(n):
         for sx in range(n):
-            x = float(px) + (float(sx) + 0.5) / float(n)
-            y = float(py) + (float(sy) + 0.5) / float(n)
-            o = pixel_ray_origin(view, x, y)
-            d = pixel_ray_direction(view, x, y)
-            e, alpha, hit = nearest_entry(view, geo, bins, tile, x, y, o, d, u)
+            o, d, e, alpha, hit = subsample_nearest(view, geo, bins, tile, px, py, sx, sy, u)
             tri = int(-1)
             color = wp.vec3(0.0, 0.0, 0.0)
             kept = int(shade)
@@ -292,11 +295,7 @@ def render_over_recorded(view: View, geo: Geometry, sh: Shading, bins: Bins, u: 
     cover = float(0.0)
     for sy in range(n):
         for sx in range(n):
-            x = float(px) + (float(sx) + 0.5) / float(n)
-            y = float(py) + (float(sy) + 0.5) / float(n)
-            o = pixel_ray_origin(view, x, y)
-            d = pixel_ray_direction(view, x, y)
-            e, alpha, hit = nearest_entry(view, geo, bins, tile, x, y, o, d, u)
+            o, d, e, alpha, hit = subsample_nearest(view, geo, bins, tile, px, py, sx, sy, u)
             r = rec_e[k, sy * n + sx]
             r_hit = rec_hit[k, sy * n + sx]
             if e >= 0 and (r < 0 or hit[1] < r_hit[1] or (hit[1] == r_hit[1] and e < r)):
