@@ -109,15 +109,22 @@ def subsample_nearest(view: View, geo: Geometry, bins: Bins, tile: int, px: int,
 @wp.func
 def sharp_pixel(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float, pix: int,
                 rgba: wp.array2d(dtype=float), record: int, row: int, rec_e: wp.array2d(dtype=int),
-                rec_hit: wp.array2d(dtype=wp.vec4)):
+                rec_hit: wp.array2d(dtype=wp.vec4), done: wp.array(dtype=wp.uint8)):
     """rgba[pix] += weight × pixel pix of the sharp image at shutter time u (n×n sub-samples);
-    with record = 1, each sub-sample's triangle (-1: none) and hit go to rec_e[row, s], rec_hit[row, s]."""
+    with record >= 1, each sub-sample's triangle (-1: none) and hit go to rec_e[row, s], rec_hit[row, s].
+    record = 2 (still surfaces under lights that hold still, their shadows may not): a pixel whose
+    every sub-sample's shadow lookups read only texels that never change (shadows_steady_at)
+    looks the same at every instant, so it is added whole (weight 1) and marked done[row] = 1
+    for shade_recorded to skip; the others are added with `weight`, as one instant of many."""
     px = pix % view.width
     py = pix // view.width
     tile = pixel_tile(view, px, py)
     n = view.spatial
     color = wp.vec3(0.0, 0.0, 0.0)
     cover = float(0.0)
+    steady = int(0)
+    if record == 2:
+        steady = 1
     for sy in range(n):
         for sx in range(n):
             o, d, e, alpha, hit = subsample_nearest(view, geo, bins, tile, px, py, sx, sy, u)
@@ -130,9 +137,16 @@ def sharp_pixel(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, we
             if e >= 0:
                 color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
                 cover = cover + 1.0
+                if steady != 0 and not shadows_steady_at(view, geo, sh, e, u, o, d, hit):
+                    steady = 0
             else:
                 color = color + dome_at(sh, d, u)
-    add_pixel(rgba, pix, weight / float(n * n), color, cover)
+    w = weight
+    if record == 2:
+        done[row] = wp.uint8(steady)
+        if steady != 0:
+            w = 1.0
+    add_pixel(rgba, pix, w / float(n * n), color, cover)
 
 
 @wp.func
@@ -147,15 +161,17 @@ def add_pixel(rgba: wp.array2d(dtype=float), pix: int, w: float, color: wp.vec3,
 def render_sharp(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float,
                  pixels: wp.array(dtype=int), listed: int, first: int, record: int,
                  # outputs
-                 rgba: wp.array2d(dtype=float), rec_e: wp.array2d(dtype=int), rec_hit: wp.array2d(dtype=wp.vec4)):
+                 rgba: wp.array2d(dtype=float), rec_e: wp.array2d(dtype=int), rec_hit: wp.array2d(dtype=wp.vec4),
+                 done: wp.array(dtype=wp.uint8)):
     """Add weight × (the sharp image at shutter time u) to rgba (H*W, 4): at pixel first + tid, or
     with listed = 1 at pixels[first + tid] (recording each sub-sample's hit in row first + tid of
-    rec_e / rec_hit when record = 1, for shade_recorded)."""
+    rec_e / rec_hit when record >= 1, for shade_recorded; record = 2 also adds the pixels whose
+    shading never changes whole and marks them in done: sharp_pixel)."""
     k = first + wp.tid()
     pix = k
     if listed != 0:
         pix = pixels[k]
-    sharp_pixel(view, geo, sh, bins, u, weight, pix, rgba, record, k, rec_e, rec_hit)
+    sharp_pixel(view, geo, sh, bins, u, weight, pix, rgba, record, k, rec_e, rec_hit, done)
 
 
 @wp.kernel(enable_backward=False)
@@ -167,7 +183,7 @@ def shade_recorded(view: View, geo: Geometry, sh: Shading, u: float, weight: flo
     """render_sharp at listed pixels whose visibility is known not to change (recorded at another
     instant): only the shading at time u (lights, shadows, normals) is redone. Thread t reshades
     listed pixel k = first + t, or with use_rows = 1 pixel k = rows[first + t] (the pixels whose
-    shading changes: record_steady added the others whole). geo's entries are all triangles
+    shading changes: render_sharp with record = 2 added the others whole). geo's entries are all triangles
     (entry = triangle index), as recorded."""
     k = first + wp.tid()
     if use_rows != 0:
@@ -192,47 +208,6 @@ def shade_recorded(view: View, geo: Geometry, sh: Shading, u: float, weight: flo
                 y = float(py) + (float(sy) + 0.5) / float(n)
                 color = color + dome_at(sh, pixel_ray_direction(view, x, y), u)
     add_pixel(rgba, pix, weight / float(n * n), color, cover)
-
-
-@wp.kernel(enable_backward=False)
-def record_steady(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float, weight: float,
-                  pixels: wp.array(dtype=int), first: int,
-                  # outputs
-                  rgba: wp.array2d(dtype=float), rec_e: wp.array2d(dtype=int), rec_hit: wp.array2d(dtype=wp.vec4),
-                  done: wp.array(dtype=wp.uint8)):
-    """render_sharp with record at listed pixels whose surfaces hold still under lights that hold
-    still (their shadows may not): a pixel whose every sub-sample's shadow lookups read only
-    texels that never change (shadows_steady_at) looks the same at every instant, so it is added
-    whole (weight 1) and marked done[k] = 1 for shade_recorded to skip; the others are added with
-    `weight`, as one instant of many."""
-    k = first + wp.tid()
-    pix = pixels[k]
-    px = pix % view.width
-    py = pix // view.width
-    tile = pixel_tile(view, px, py)
-    n = view.spatial
-    color = wp.vec3(0.0, 0.0, 0.0)
-    cover = float(0.0)
-    steady = int(1)
-    for sy in range(n):
-        for sx in range(n):
-            o, d, e, alpha, hit = subsample_nearest(view, geo, bins, tile, px, py, sx, sy, u)
-            tri = int(-1)
-            if e >= 0:
-                tri = geo.entry_tri[e]
-                color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
-                cover = cover + 1.0
-                if steady != 0 and not shadows_steady_at(view, geo, sh, e, u, o, d, hit):
-                    steady = 0
-            else:
-                color = color + dome_at(sh, d, u)
-            rec_e[k, sy * n + sx] = tri
-            rec_hit[k, sy * n + sx] = hit
-    w = weight
-    if steady != 0:
-        w = 1.0
-    done[k] = wp.uint8(steady)
-    add_pixel(rgba, pix, w / float(n * n), color, cover)
 
 
 @wp.kernel(enable_backward=False)

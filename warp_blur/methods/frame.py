@@ -18,8 +18,7 @@ from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_
 from ..kernels.kernel_types import Geometry
 from ..core import progress
 from ..core.parallel import FINE_BANDS, launch_pixels
-from ..kernels.raster import (record_nearest, record_steady, render_depth_motion, render_over_recorded, render_sharp,
-                              shade_recorded)
+from ..kernels.raster import record_nearest, render_depth_motion, render_over_recorded, render_sharp, shade_recorded
 from ..usd.scene import Scene, Snapshot
 from ..core.settings import RenderSettings
 from ..shadows.layout import Sample, ShadowOptions
@@ -47,7 +46,7 @@ class RecordedHits:
     entries: wp.array
     hits: wp.array
     colors: wp.array | None = None   # (P, subsamples) vec3 radiance at the recording instant, when kept
-    done: wp.array | None = None     # (P,) uint8: 1 where the pixel was added whole (record_steady)
+    done: wp.array | None = None     # (P,) uint8: 1 where the pixel was added whole (render_sharp, record 2)
     kept: wp.array | None = None     # (P, subsamples) uint8: 1 where `colors` holds every instant's radiance
     pending: wp.array | None = None  # rows whose done flag is 0, found once the recording has run
     pending_count: int = 0
@@ -70,7 +69,7 @@ class FrameContext:
     neighbour: Snapshot | None = None   # an adjacent sharp instant's snapshot (accumulation sets it)
     _shading_last: tuple | None = None   # (time, Shading) of the last instant shaded
     _per_triangle_last: tuple | None = None   # (snapshot, Geometry) of the last per_triangle_geometry
-    #: sharp instants' Shading carries the maps' varying-texel flags (record_steady reads them)
+    #: sharp instants' Shading carries the maps' varying-texel flags (render_sharp's record = 2 reads them)
     instant_flags: bool = False
     probe_snapshots: dict = field(default_factory=dict)   # shutter fraction -> Snapshot (static_frame's)
     instants: int = 1   # sharp instants this frame will shade (accumulation sets it)
@@ -312,11 +311,9 @@ class FrameContext:
                            ) -> "tuple[Callable[[], None] | None, RecordedHits | None]":
         """sharp_pass in two steps: everything up to the launch now, and (run, hits): run()
         launches it (None: nothing to render); with record, hits (RecordedHits) hold the listed
-        pixels' hits once run() has returned. whole_if_steady (with record and pixels, for still
-        surfaces under lights that hold still): pixels whose shadow lookups read only texels that
-        never change are added at weight 1 and marked done (record_steady)."""
-        if whole_if_steady and record and pixels is not None and len(pixels):
-            return self._prepare_record_steady(snapshot, weight, rgba, pixels, triangles, cull)
+        pixels' hits once run() has returned. whole_if_steady (with record, for still surfaces under
+        lights that hold still): pixels whose shadow lookups read only texels that never change are
+        added at weight 1 and marked in hits.done (render_sharp's record = 2)."""
         if pixels is not None and len(pixels) == 0:
             return None, None
         sh = self.shading([snapshot])
@@ -331,40 +328,17 @@ class FrameContext:
         rows = count if record else 1
         rec_e = wp.zeros((rows, subs if record else 1), dtype=int, device=dev)
         rec_hit = wp.zeros((rows, subs if record else 1), dtype=wp.vec4, device=dev)
+        whole = record and whole_if_steady
+        done = wp.zeros(rows if whole else 1, dtype=wp.uint8, device=dev)
+        mode = 2 if whole else (1 if record else 0)
 
         def run() -> None:
             with self.timed("render"):
                 launch_pixels(render_sharp, count,
                               lambda first, _n: [view, geo, sh, b, u, weight, listed, 0 if pixels is None else 1,
-                                                 first, 1 if record else 0, rgba, rec_e, rec_hit], dev,
+                                                 first, mode, rgba, rec_e, rec_hit, done], dev,
                               self.settings.threads, bands_per_thread=FINE_BANDS)
-        return run, (RecordedHits(view, listed, rec_e, rec_hit) if record else None)
-
-    def _recording(self, snapshot: Snapshot, pixels: np.ndarray, triangles: np.ndarray | None, cull: bool = True):
-        """What a pass recording hits at the listed pixels launches with: (Shading, Geometry of
-        `triangles` at this instant, View, Bins, shutter fraction, listed pixels, and zeroed
-        (P, subsamples) triangle and hit records)."""
-        geo, bins = self.static_geometry([snapshot], 0, triangles, self.receiver_velocities(snapshot), cull)
-        dev = self.device
-        subs = self.settings.spatial_samples ** 2
-        return (self.shading([snapshot]), geo, self.view(bins), make_bins(bins, dev), self.snapshot_fraction(snapshot),
-                wp.array(pixels.astype(np.int32), dtype=int, device=dev),
-                wp.zeros((len(pixels), subs), dtype=int, device=dev), wp.zeros((len(pixels), subs), dtype=wp.vec4,
-                                                                                device=dev))
-
-    def _prepare_record_steady(self, snapshot: Snapshot, weight: float, rgba: wp.array, pixels: np.ndarray,
-                               triangles: np.ndarray | None, cull: bool) -> "tuple[Callable[[], None], RecordedHits]":
-        """prepare_sharp_pass's recording pass with whole_if_steady (record_steady)."""
-        sh, geo, view, b, u, listed, rec_e, rec_hit = self._recording(snapshot, pixels, triangles, cull)
-        dev = self.device
-        done = wp.zeros(len(pixels), dtype=wp.uint8, device=dev)
-
-        def run() -> None:
-            with self.timed("render"):
-                launch_pixels(record_steady, len(pixels),
-                              lambda first, _n: [view, geo, sh, b, u, weight, listed, first, rgba, rec_e, rec_hit,
-                                                 done], dev, self.settings.threads, bands_per_thread=FINE_BANDS)
-        return run, RecordedHits(view, listed, rec_e, rec_hit, done=done)
+        return run, (RecordedHits(view, listed, rec_e, rec_hit, done=done if whole else None) if record else None)
 
     def per_triangle_geometry(self, snapshot: Snapshot) -> Geometry:
         """The instant's Geometry with every triangle an entry (entry = triangle index), static at
@@ -415,8 +389,15 @@ class FrameContext:
         (for every instant), with shade = 2 (still lights, shadows that may change) its radiance
         where its shadow lookups never change; nothing is added to the image
         (prepare_over_recorded_pass composites it)."""
-        sh, geo, view, b, u, listed, rec_e, rec_hit = self._recording(snapshot, pixels, triangles)
+        sh = self.shading([snapshot])
+        geo, bins = self.static_geometry([snapshot], 0, triangles, self.receiver_velocities(snapshot))
+        view, b = self.view(bins), make_bins(bins, self.device)
+        u = self.snapshot_fraction(snapshot)
         dev = self.device
+        listed = wp.array(pixels.astype(np.int32), dtype=int, device=dev)
+        subs = self.settings.spatial_samples ** 2
+        rec_e = wp.zeros((len(pixels), subs), dtype=int, device=dev)
+        rec_hit = wp.zeros((len(pixels), subs), dtype=wp.vec4, device=dev)
         shape = rec_e.shape if shade else (1, 1)
         rec_color = wp.zeros(shape, dtype=wp.vec3, device=dev)
         rec_kept = wp.zeros(shape, dtype=wp.uint8, device=dev)

@@ -206,11 +206,12 @@ def presence_passes(ctx: FrameContext, view, geo, sh, bins, u: float, first_pass
     more = wp.zeros_like(first_pass)
     none = wp.zeros(1, dtype=int, device=dev)
     rec_e, rec_hit = wp.zeros((1, 1), dtype=int, device=dev), wp.zeros((1, 1), dtype=wp.vec4, device=dev)
+    done = wp.zeros(1, dtype=wp.uint8, device=dev)
     with ctx.timed("render"):
         for j in range(1, PRESENCE_PASSES):
             geo.presence_shift = j
             launch_pixels(render_sharp, ctx.num_pixels,
-                          lambda first, _n: [view, geo, sh, bins, u, 1.0, none, 0, first, 0, more, rec_e, rec_hit],
+                          lambda first, _n: [view, geo, sh, bins, u, 1.0, none, 0, first, 0, more, rec_e, rec_hit, done],
                           dev, ctx.settings.threads)
         geo.presence_shift = 0
     ctx.counters["presence_passes"] = PRESENCE_PASSES
