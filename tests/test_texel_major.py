@@ -84,20 +84,22 @@ def test_a_map_of_no_registered_light_is_an_error():
         laid.put(len(maps) - 1, maps[0])
 
 
-def test_a_frames_layout_memory_is_reused_only_once_its_frame_is_gone():
-    class Frame:
-        pass
+def test_a_frames_layout_memory_is_reused_only_once_every_reader_is_gone():
+    gc.collect()    # earlier tests' frames hand their arrays back first (they would push this test's out)
     reuse.clear()
-    first, second = Frame(), Frame()
-    a = reuse.reused_empty((3, 8, 8, 4), float, first)
-    b = reuse.reused_empty((3, 8, 8, 4), float, second)
+    a = reuse.reused_empty((3, 8, 8, 4), float)
+    b = reuse.reused_empty((3, 8, 8, 4), float)
     assert a.ptr != b.ptr                       # both frames alive: two arrays
     ptr = a.ptr
-    del first, a
+    reader = a.numpy()                          # a pass still reading the first frame's maps
+    del a
     gc.collect()
-    third, fourth = Frame(), Frame()
-    c = reuse.reused_empty((3, 8, 8, 4), float, third)
-    assert c.ptr == ptr                         # the first frame's memory, handed on
-    d = reuse.reused_empty((2, 8, 8, 4), float, fourth)
-    assert d.ptr not in (ptr, b.ptr) and d.shape == (2, 8, 8, 4)
+    c = reuse.reused_empty((3, 8, 8, 4), float)
+    assert c.ptr not in (ptr, b.ptr)            # not handed on while it is read
+    del reader
+    gc.collect()
+    d = reuse.reused_empty((3, 8, 8, 4), float)
+    assert d.ptr == ptr                         # the first frame's memory, handed on
+    e = reuse.reused_empty((2, 8, 8, 4), float)
+    assert e.ptr not in (ptr, b.ptr, c.ptr) and e.shape == (2, 8, 8, 4)
     reuse.clear()

@@ -16,6 +16,7 @@ import numpy as np
 import warp as wp
 
 from .core import log, progress
+from .core.allocator import keep_freed_memory
 from .methods.frame import FrameContext
 from .usd.framing import is_framing_camera, place_framing_camera
 from .core.errors import SettingsError, StageError, UserError
@@ -54,9 +55,11 @@ _warp_ready = False
 
 def init_warp(device: str) -> None:
     """Initialise Warp once. The native CUDA probe's stderr notice is silenced (so a user error
-    stays one line); a requested device that does not exist here is a user error."""
+    stays one line); a requested device that does not exist here is a user error. Freed frame
+    buffers are kept for the next frame from here on (core/allocator.py)."""
     global _warp_ready
     if not _warp_ready:
+        keep_freed_memory()
         sys.stderr.flush()
         saved = os.dup(2)
         try:

@@ -20,20 +20,23 @@ _lock = threading.Lock()
 _kept: list[tuple[tuple, wp.array]] = []
 
 
-def reused_empty(shape: tuple[int, ...], dtype, holder: object) -> wp.array:
+def reused_empty(shape: tuple[int, ...], dtype) -> wp.array:
     """An uninitialised host array like wp.empty(shape, dtype, device="cpu"), made of a kept
-    array's memory when one of that shape and type is free. It is kept again once `holder` (the
-    object that owns it and outlives every reader of it) is collected."""
+    array's memory when one of that shape and type is free. The memory is kept again only once
+    the returned array is collected, and every reader holds it (a Shading struct, a view made
+    from it, a NumPy view of it): it is a view of the kept array, so a frame's maps are never
+    handed on while a pass still reads them."""
     key = (tuple(int(n) for n in shape), dtype)
-    array = None
+    backing = None
     with _lock:
         for i in range(len(_kept) - 1, -1, -1):
             if _kept[i][0] == key:
-                array = _kept.pop(i)[1]
+                backing = _kept.pop(i)[1]
                 break
-    if array is None:
-        array = wp.empty(key[0], dtype=dtype, device="cpu")
-    weakref.finalize(holder, _keep, key, array)
+    if backing is None:
+        backing = wp.empty(key[0], dtype=dtype, device="cpu")
+    array = wp.array(ptr=backing.ptr, shape=backing.shape, strides=backing.strides, dtype=dtype, device="cpu")
+    weakref.finalize(array, _keep, key, backing)
     return array
 
 

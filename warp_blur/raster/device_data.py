@@ -10,6 +10,7 @@ import warp as wp
 
 from .binning import TileBins
 from ..core.camera import Projection
+from ..core.reuse import reused_empty
 from ..kernels.kernel_types import Bins, Geometry, Shading, Textures, View
 from ..kernels.shadow_lookup import FACE_WIDTH
 
@@ -250,8 +251,11 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
             shadows.device_arrays[key] = cached
         if cached is None:
             # on the CPU the maps are laid out straight into the device array (no second copy)
-            dev_maps = wp.empty(slot_map_shape(shadows, instant_major), dtype=float, device=device)
             on_host = wp.get_device(device).is_cpu
+            shape = slot_map_shape(shadows, instant_major)
+            # on the CPU, last frame's memory (core/reuse.py): laid out on the helper thread, whose
+            # freed heap glibc returns to the system, these faulted in ~50 MB a frame on demo
+            dev_maps = reused_empty(shape, float) if on_host else wp.empty(shape, dtype=float, device=device)
             maps, faces, varying, slot_lights = face_slots(shadows, dev_maps.numpy() if on_host else None,
                                                            instant_major, instant_flags)
             if not on_host:

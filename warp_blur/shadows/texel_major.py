@@ -28,7 +28,7 @@ class TexelMajorLayout:
         # device gets a copy (device_data.make_shading)
         # last frame's memory when the shape is the same (core/reuse.py): every instant of every
         # slot is written before it is read
-        self.array = reused_empty((max(slots, 1), size, size, times), float, self)
+        self.array = reused_empty((max(slots, 1), size, size, times), float)
         self.slots = self.array.numpy()
         self.varying_array = wp.zeros((max(slots, 1), size, size), dtype=wp.uint8, device="cpu")
         self.varying = self.varying_array.numpy()
