@@ -144,6 +144,7 @@ class Renderer:
                 aovs["motion"] = motion.astype(np.float32)
         if "coverage" in s.aovs:
             aovs["coverage"] = rgba[..., 3].copy()
+        ctx.release()   # the frame's buffers go back now, for the next frame to reuse
         total = time.perf_counter() - t_start
         stats = {
             "method": s.method, "frame": frame, "resolution": [w, h],

@@ -74,6 +74,19 @@ class FrameContext:
     probe_snapshots: dict = field(default_factory=dict)   # shutter fraction -> Snapshot (static_frame's)
     instants: int = 1   # sharp instants this frame will shade (accumulation sets it)
 
+    def release(self) -> None:
+        """Drop the frame's caches (shadow maps, the last Shading and geometry, snapshots) once
+        the frame is done. The context sits in reference cycles (closures over it), which only
+        Python's occasional full collection frees: without this, a frame's buffers outlived it
+        and the next frame allocated (and faulted in) its own, e.g. accumulation's 50 MB of
+        shadow maps on demo."""
+        self._instant_shadows = None
+        self._shading_last = None
+        self._per_triangle_last = None
+        self._velocities = None
+        self.neighbour = None
+        self.probe_snapshots = {}
+
     @contextmanager
     def timed(self, stage: str):
         progress.stage(stage)
