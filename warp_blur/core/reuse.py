@@ -16,7 +16,8 @@ import warp as wp
 #: arrays kept for reuse, most recent last (a frame needs one; a second covers two renderers)
 MAX_KEPT = 2
 
-_lock = threading.Lock()
+#: re-entrant: a collection inside reused_empty's critical section may run _keep in the same thread
+_lock = threading.RLock()
 _kept: list[tuple[tuple, wp.array]] = []
 
 

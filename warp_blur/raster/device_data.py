@@ -253,8 +253,7 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
             # on the CPU the maps are laid out straight into the device array (no second copy)
             on_host = wp.get_device(device).is_cpu
             shape = slot_map_shape(shadows, instant_major)
-            # on the CPU, last frame's memory (core/reuse.py): laid out on the helper thread, whose
-            # freed heap glibc returns to the system, these faulted in ~50 MB a frame on demo
+            # on the CPU, a kept array (core/reuse.py): new memory faulted in 50 MB a frame on demo
             dev_maps = reused_empty(shape, float) if on_host else wp.empty(shape, dtype=float, device=device)
             maps, faces, varying, slot_lights = face_slots(shadows, dev_maps.numpy() if on_host else None,
                                                            instant_major, instant_flags)
