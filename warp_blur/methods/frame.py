@@ -294,18 +294,26 @@ class FrameContext:
         back faces that cannot show dropped unless cull is False (raster/culling.py)."""
         positions = np.stack([s.positions for s in snapshots])
         normals = np.stack([s.normals for s in snapshots]) if self.scene.any_smooth else None
-        visible = snapshots[knot].tri_visible
-        if triangles is not None:
-            visible = visible & triangles
-        tris = np.nonzero(visible)[0].astype(np.int32)
+        tris, dropped = self.front_triangles(snapshots[knot], triangles, cull)
         k = np.full(len(tris), knot, np.int32)
-        sc = self.scene
-        hidden = np.zeros(len(tris), bool) if not cull else hidden_back_faces(positions[knot:knot + 1], sc.tri_vertices, sc.tri_object, sc.tri_closed, tris,
-                                   k * 0, k * 0, self.proj.near, self.proj.far, self.proj.orthographic)
-        tris, k = tris[~hidden], k[~hidden]
-        self.counters["back_faces_dropped"] = int(hidden.sum())
+        self.counters["back_faces_dropped"] = dropped
         bins = self.bin(positions, tris, k, k)
         return make_geometry(self.tables, positions, normals, tris, k, k, velocities), bins
+
+    def front_triangles(self, snapshot: Snapshot, triangles: np.ndarray | None = None,
+                        cull: bool = True) -> tuple[np.ndarray, int]:
+        """(tris (N,) int32, dropped): the triangles visible in `snapshot` (of `triangles`, a (T,)
+        mask, when given), without the back faces that cannot show there (raster/culling.py)
+        unless cull is False; dropped: how many back faces were left out."""
+        visible = snapshot.tri_visible if triangles is None else snapshot.tri_visible & triangles
+        tris = np.nonzero(visible)[0].astype(np.int32)
+        if not cull:
+            return tris, 0
+        sc = self.scene
+        k = np.zeros(len(tris), np.int32)
+        hidden = hidden_back_faces(snapshot.positions[None], sc.tri_vertices, sc.tri_object, sc.tri_closed, tris,
+                                   k, k, self.proj.near, self.proj.far, self.proj.orthographic)
+        return tris[~hidden], int(hidden.sum())
 
     def sharp_pass(self, snapshot: Snapshot, weight: float, rgba: wp.array, pixels: np.ndarray | None = None,
                    record: bool = False, triangles: np.ndarray | None = None,
@@ -430,15 +438,11 @@ class FrameContext:
         mask) change: those are rasterised and the nearer of them and the recorded hit shown (the
         recorded one with its recorded radiance where hits.kept says so, else shaded now). Equal
         to sharp_pass over both sets, at the cost of rasterising the changing ones only."""
-        sc = self.scene
-        tris = np.nonzero(snapshot.tri_visible & triangles)[0].astype(np.int32)
+        tris, _ = self.front_triangles(snapshot, triangles)
         k = np.zeros(len(tris), np.int32)
-        hidden = hidden_back_faces(snapshot.positions[None], sc.tri_vertices, sc.tri_object, sc.tri_closed, tris,
-                                   k, k, self.proj.near, self.proj.far, self.proj.orthographic)
-        tris, k = tris[~hidden], k[~hidden]
         bins = self.bin(snapshot.positions[None], tris, k, k)
         # the bins list triangle indices: every triangle is an entry of the instant's geometry
-        num = sc.num_triangles
+        num = self.scene.num_triangles
         boxes = np.zeros((num, 4), np.float32)
         boxes[tris] = bins.entry_boxes
         bands = np.tile(np.array([0.0, 0.0, -1.0, 1.0], np.float32), (num, 1))
