@@ -123,3 +123,25 @@ def ramp_light_stage(path: str, intensity: dict | None = None) -> str:
     add_quad(stage, "/World/Sweep", 0.5, 2.5, material=emit, translate_samples={0.5: (-3.0, 0, 0), 1.5: (3.0, 0, 0)})
     stage.GetRootLayer().Save()
     return path
+
+
+def translucent_layers_stage(path: str) -> str:
+    """shadow_stage with nothing moving and three overlapping translucent (fractional opacity)
+    squares at different heights above the lit ground, the occluder among them: under the light's
+    one shadow map, only the squares' presence differs between instants."""
+    from pxr import Sdf, Usd, UsdShade
+    from authoring import add_material, add_mesh
+    shadow_stage(path)
+    stage = Usd.Stage.Open(path)
+    surface = UsdShade.Shader.Get(stage, "/World/Looks/Dark/PreviewSurface")
+    surface.GetInput("opacity").Set(0.5)
+    surface.CreateInput("opacityThreshold", Sdf.ValueTypeNames.Float).Set(0.0)
+    for i, (height, x, alpha) in enumerate([(0.6, -0.3, 0.4), (0.3, 0.1, 0.7)]):
+        look = add_material(stage, f"/World/Looks/Glass{i}", diffuse=(0.2, 0.3 + 0.3 * i, 0.9), roughness=0.5)
+        glass = UsdShade.Shader.Get(stage, f"/World/Looks/Glass{i}/PreviewSurface")
+        glass.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(alpha)
+        glass.CreateInput("opacityThreshold", Sdf.ValueTypeNames.Float).Set(0.0)
+        add_mesh(stage, f"/World/Glass{i}", [(x - 0.6, height, 0.6), (x + 0.6, height, 0.6), (x + 0.6, height, -0.6),
+                                            (x - 0.6, height, -0.6)], [4], [0, 1, 2, 3], material=look)
+    stage.GetRootLayer().Save()
+    return path

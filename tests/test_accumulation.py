@@ -118,6 +118,31 @@ def test_still_tiles_under_shadows_that_never_change_render_once(scene_path, mon
     assert np.abs(once.rgba - unshadowed.rgba).max() > 0.05    # the occluder's shadow is there
 
 
+@pytest.mark.parametrize("spatial", [1, 2])
+def test_instants_differing_only_in_presence_render_in_one_pass(scene_path, monkeypatch, spatial):
+    """Nothing moves and only fractional opacity makes the instants differ: the moving tiles'
+    instants are one pass that shades each translucent surface a sub-sample shows once (three
+    layers overlap: more than the two radiances it remembers). The image is the one of a pass per
+    instant, bit for bit, and of every pixel rendered at every instant."""
+    from scenes import translucent_layers_stage
+    import warp_blur.methods.accumulation as accumulation
+    path = translucent_layers_stage(scene_path())
+    kw = dict(frame=1, resolution=(96, 72), samples=12, aovs=(), shadow_map_size=256, spatial_samples=spatial)
+    one = wb.render(path, **kw)
+    assert one.stats["accumulation_presence_pass"] is True
+    assert one.stats["accumulation_still_shading"] == "once"
+    monkeypatch.setattr(accumulation, "INSTANTS_IN_ONE_PASS", False)
+    per_instant = wb.render(path, **kw)
+    assert "accumulation_presence_pass" not in per_instant.stats
+    np.testing.assert_array_equal(one.rgba, per_instant.rgba)
+    monkeypatch.setattr(accumulation, "STATIC_TILES", False)
+    every = wb.render(path, **kw)
+    assert np.abs(one.rgba - every.rgba).max() < 1e-5
+    # the layers are translucent: partly there, over the lit and shadowed ground
+    opaque = wb.render(path, **kw, shadows="off")
+    assert np.abs(one.rgba - opaque.rgba).max() > 0.05
+
+
 @pytest.mark.parametrize("shadows", ["off", "direct"])
 def test_moving_tiles_rasterise_only_the_triangles_that_change(scene_path, monkeypatch, shadows):
     """Where something moves, the still triangles' nearest hit is found once (and shaded once

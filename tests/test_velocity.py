@@ -84,3 +84,19 @@ def test_one_visibility_pass_gives_the_sharp_image_depth_and_motion(scene_path):
     np.testing.assert_array_equal(vel.rgba, centre.rgba)
     np.testing.assert_array_equal(vel.aovs["Z"], acc.aovs["Z"])
     np.testing.assert_allclose(vel.aovs["motion"], acc.aovs["motion"], atol=1e-5)
+
+
+def test_presence_passes_render_only_the_tiles_that_hold_translucent_surfaces(scene_path, monkeypatch):
+    """Fractional opacity: the velocity method's extra presence passes re-render only the screen
+    tiles whose bins hold a translucent triangle; the image equals re-rendering every pixel."""
+    from scenes import translucent_layers_stage
+    import warp_blur.methods.velocity as velocity
+    path = translucent_layers_stage(scene_path())
+    kw = dict(frame=1, method="velocity", resolution=(96, 72), aovs=(), shadow_map_size=256)
+    tiles = wb.render(path, **kw)
+    assert tiles.stats["presence_passes"] == velocity.PRESENCE_PASSES
+    assert 0.05 < tiles.stats["presence_pixels"] < 0.9
+    monkeypatch.setattr(velocity, "PRESENCE_TILES", False)
+    every = wb.render(path, **kw)
+    assert every.stats["presence_pixels"] == 1.0
+    np.testing.assert_array_equal(tiles.rgba, every.rgba)

@@ -287,6 +287,70 @@ def render_over_recorded(view: View, geo: Geometry, sh: Shading, bins: Bins, u: 
     add_pixel(rgba, pix, weight / float(n * n), color, cover)
 
 
+#: radiance slots per sub-sample in render_over_recorded_instants (the changing surfaces a
+#: sub-sample shows, most often one translucent layer, or two)
+INSTANT_CACHE_SLOTS = wp.constant(2)
+
+
+@wp.kernel(enable_backward=False)
+def render_over_recorded_instants(view: View, geo: Geometry, sh: Shading, bins: Bins, us: wp.array(dtype=float),
+                                  weight: float, pixels: wp.array(dtype=int), first: int,
+                                  rec_e: wp.array2d(dtype=int), rec_hit: wp.array2d(dtype=wp.vec4),
+                                  rec_color: wp.array2d(dtype=wp.vec3),
+                                  # scratch (row k: INSTANT_CACHE_SLOTS per sub-sample) and output
+                                  cache_e: wp.array2d(dtype=int), cache_color: wp.array2d(dtype=wp.vec3),
+                                  rgba: wp.array2d(dtype=float)):
+    """render_over_recorded at every instant us[i] in turn, in one launch, for a frame where
+    nothing moves and shading is steady (lights, shadows and dome the same at every instant) and
+    the changing triangles change only in presence (fractional opacity): a sub-sample's hit on a
+    triangle is then the same point, with the same radiance, at every instant, so it is shaded once
+    and remembered (INSTANT_CACHE_SLOTS per sub-sample; a surface beyond them is shaded again).
+    The recorded surface shows its recorded radiance (recorded with shade = 1). Each instant adds
+    weight × its colour as render_over_recorded's pass at that instant would, in the same order."""
+    k = first + wp.tid()
+    pix = pixels[k]
+    px = pix % view.width
+    py = pix // view.width
+    tile = pixel_tile(view, px, py)
+    n = view.spatial
+    slots = INSTANT_CACHE_SLOTS
+    for c in range(n * n * slots):
+        cache_e[k, c] = -1
+    for i in range(us.shape[0]):
+        u = us[i]
+        color = wp.vec3(0.0, 0.0, 0.0)
+        cover = float(0.0)
+        for sy in range(n):
+            for sx in range(n):
+                s = sy * n + sx
+                o, d, e, alpha, hit = subsample_nearest(view, geo, bins, tile, px, py, sx, sy, u)
+                r = rec_e[k, s]
+                r_hit = rec_hit[k, s]
+                if e >= 0 and (r < 0 or hit[1] < r_hit[1] or (hit[1] == r_hit[1] and e < r)):
+                    found = int(-1)
+                    free = int(-1)
+                    for c in range(s * slots, (s + 1) * slots):
+                        if cache_e[k, c] == e:
+                            found = c
+                        elif cache_e[k, c] < 0 and free < 0:
+                            free = c
+                    if found >= 0:
+                        color = color + cache_color[k, found]
+                    else:
+                        radiance = shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
+                        if free >= 0:
+                            cache_e[k, free] = e
+                            cache_color[k, free] = radiance
+                        color = color + radiance
+                    cover = cover + 1.0
+                elif r >= 0:
+                    color = color + rec_color[k, s]
+                    cover = cover + 1.0
+                else:
+                    color = color + dome_at(sh, d, u)
+        add_pixel(rgba, pix, weight / float(n * n), color, cover)
+
+
 @wp.func
 def store_depth_motion(view: View, geo: Geometry, e: int, hit: wp.vec4, k_open: int, k_close: int, pix: int,
                        depth: wp.array(dtype=float), motion: wp.array(dtype=wp.vec2)):

@@ -8,8 +8,10 @@ found once and only their shading is redone per instant (under lights that hold 
 that where every shadow lookup reads texels that never change). The other tiles are rendered at every
 instant, but only the triangles that change are rasterised there per instant: the nearest of the
 still ones is found once (and shaded once where shading is steady) and shown wherever nothing
-that changes is in front of it. The result is the same average (tested against rendering every
-pixel at every instant).
+that changes is in front of it. Where nothing moves at all and only fractional opacity makes the
+instants differ (presence), the moving tiles' instants are one pass that shades each surface a
+pixel shows once. The result is the same average (tested against rendering every pixel at every
+instant).
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ STATIC_TILES = True
 MOVING_SPLIT = True
 #: tests switch this off to compare against reshading every still pixel at every instant
 STEADY_PIXELS = True
+#: tests switch this off to compare against one pass per instant where only presence changes
+INSTANTS_IN_ONE_PASS = True
 #: bytes per recorded hit (triangle index and (hit, depth, barycentrics)), held for the frame
 RECORD_BYTES = 4 + 16
 #: bytes per recorded radiance and its flag (moving tiles under still lights)
@@ -50,13 +54,16 @@ class MovingTiles:
     the triangles that can show in those tiles (the moving ones and still ones whose box meets
     a moving tile); changing (T,) bool: the triangles that move, change visibility or have
     fractional opacity (the others look the same at every instant); lights_still: the lights
-    are the same at every instant (their shadows may not be)."""
+    are the same at every instant (their shadows may not be); nothing_moves: neither the camera,
+    nor a vertex, nor a triangle's visibility, nor a light changes over the instants (they differ
+    only in the presence of fractional opacity)."""
 
     pixels: np.ndarray
     steady: bool
     needed: np.ndarray
     changing: np.ndarray
     lights_still: bool = False
+    nothing_moves: bool = False
 
 
 def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
@@ -90,11 +97,13 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
         np.add.at(marks, (ty1, tx1), 1)
 
     lights_still = True
+    camera_still = True
     for u in us[1:]:
         snap = ctx.snapshot(float(u), with_normals=False)
         if snap.positions.shape != first.positions.shape:
             return None
         lights_still &= np.array_equal(snap.lights, first.lights)
+        camera_still &= np.array_equal(snap.cam_from_world, first.cam_from_world)
         same_v = (snap.positions == first.positions).all(axis=1)
         same_t = visible(snap) == visible(first)
         still_v &= same_v
@@ -116,7 +125,9 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
     touched = (integral[ty1, tx1] - integral[ty0, tx1] - integral[ty1, tx0] + integral[ty0, tx0]) > 0
     needed = ~still
     needed[kept[touched]] = True
-    return MovingTiles(np.nonzero(pixel_moving.ravel())[0], bool(steady), needed, ~still, bool(lights_still))
+    nothing_moves = lights_still and camera_still and still_v.all() and same_vis.all()
+    return MovingTiles(np.nonzero(pixel_moving.ravel())[0], bool(steady), needed, ~still, bool(lights_still),
+                       bool(nothing_moves))
 
 
 def tile_rects(ctx: FrameContext, positions: np.ndarray, tris: np.ndarray, with_kept: bool = False):
@@ -211,6 +222,12 @@ def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None, split: 
                 keep = 1 if plan.steady else (2 if STEADY_PIXELS and plan.lights_still else 0)
                 run, behind = ctx.prepare_record_pass(snap, plan.pixels, plan.needed & ~plan.changing, keep)
                 yield run
+            if INSTANTS_IN_ONE_PASS and plan.steady and plan.nothing_moves:
+                # only presence differs between the instants: every instant in one pass, each
+                # surface a sub-sample shows shaded once
+                yield ctx.prepare_over_recorded_pass(snap, behind, plan.changing, 1.0 / n, rgba, instants=us)
+                ctx.counters["accumulation_presence_pass"] = True
+                return
             run = ctx.prepare_over_recorded_pass(snap, behind, plan.changing, 1.0 / n, rgba)
         else:
             run, _ = ctx.prepare_sharp_pass(snap, 1.0 / n, rgba, plan.pixels, triangles=plan.needed)

@@ -18,7 +18,8 @@ from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_
 from ..kernels.kernel_types import Geometry
 from ..core import progress
 from ..core.parallel import FINE_BANDS, launch_pixels
-from ..kernels.raster import record_nearest, render_depth_motion, render_over_recorded, render_sharp, shade_recorded
+from ..kernels.raster import (INSTANT_CACHE_SLOTS, record_nearest, render_depth_motion, render_over_recorded,
+                              render_over_recorded_instants, render_sharp, shade_recorded)
 from ..usd.scene import Scene, Snapshot
 from ..core.settings import RenderSettings
 from ..shadows.layout import Sample, ShadowOptions
@@ -432,12 +433,18 @@ class FrameContext:
                                  kept=rec_kept if shade else None)
 
     def prepare_over_recorded_pass(self, snapshot: Snapshot, hits: "RecordedHits", triangles: np.ndarray,
-                                   weight: float, rgba: wp.array) -> "Callable[[], None] | None":
+                                   weight: float, rgba: wp.array,
+                                   instants: np.ndarray | None = None) -> "Callable[[], None] | None":
         """A pass that, run, adds weight × the sharp image of one instant at the recorded pixels,
         where the recorded surfaces (prepare_record_pass) stand still and only `triangles` (a (T,)
         mask) change: those are rasterised and the nearer of them and the recorded hit shown (the
         recorded one with its recorded radiance where hits.kept says so, else shaded now). Equal
-        to sharp_pass over both sets, at the cost of rasterising the changing ones only."""
+        to sharp_pass over both sets, at the cost of rasterising the changing ones only.
+
+        With `instants` (shutter fractions), one pass adds weight × each of those instants' images
+        in turn, for a frame where nothing moves, shading is steady (hits recorded with their
+        radiance) and `triangles` change only in presence: render_over_recorded_instants, each
+        changing surface shaded once per sub-sample instead of once per instant."""
         tris, _ = self.front_triangles(snapshot, triangles)
         k = np.zeros(len(tris), np.int32)
         bins = self.bin(snapshot.positions[None], tris, k, k)
@@ -458,6 +465,21 @@ class FrameContext:
         colors = hits.colors if hits.colors is not None else wp.zeros((1, 1), dtype=wp.vec3, device=self.device)
         kept_flags = hits.kept if hits.kept is not None else wp.zeros((1, 1), dtype=wp.uint8, device=self.device)
         view = self.view(bins)
+        if instants is not None:
+            assert hits.colors is not None, "instants in one pass need the recorded radiance"
+            count = hits.pixels.shape[0]
+            slots = hits.entries.shape[1] * INSTANT_CACHE_SLOTS
+            us = wp.array(np.asarray(instants, np.float32), dtype=float, device=self.device)
+            cache_e = wp.empty((count, slots), dtype=int, device=self.device)
+            cache_color = wp.empty((count, slots), dtype=wp.vec3, device=self.device)
+
+            def run_instants() -> None:
+                with self.timed("render"):
+                    launch_pixels(render_over_recorded_instants, count,
+                                  lambda first, _n: [view, geo, sh, b, us, weight, hits.pixels, first, hits.entries,
+                                                     hits.hits, hits.colors, cache_e, cache_color, rgba],
+                                  self.device, self.settings.threads, bands_per_thread=FINE_BANDS)
+            return run_instants
 
         def run() -> None:
             with self.timed("render"):

@@ -196,26 +196,53 @@ def tile_neighbor_max(vhalf: np.ndarray, tile: int) -> tuple[np.ndarray, int]:
 #: sharp passes the velocity method averages where opacity is fractional: presence at consecutive
 #: slots of each triangle's sequence (stratified), so translucency is smooth rather than a dither
 PRESENCE_PASSES = 8
+#: tests switch this off to compare against presence passes over every pixel
+PRESENCE_TILES = True
 
 
-def presence_passes(ctx: FrameContext, view, geo, sh, bins, u: float, first_pass: wp.array) -> wp.array:
+def presence_pixels(bins, entry_fractional: np.ndarray, tile_size: int, width: int, height: int) -> np.ndarray:
+    """Flat indices (ascending, int32) of the pixels in screen tiles whose bins hold an entry with
+    fractional opacity (entry_fractional (E,) bool): the only pixels a presence pass can change."""
+    counts = np.diff(bins.tile_offsets)
+    tile_of_pair = np.repeat(np.arange(len(counts)), counts)
+    flagged = np.zeros(len(counts), bool)
+    flagged[tile_of_pair[entry_fractional[bins.tile_entries]]] = True
+    tiles = flagged.reshape(bins.tiles_y, bins.tiles_x)
+    mask = np.repeat(np.repeat(tiles, tile_size, axis=0), tile_size, axis=1)[:height, :width]
+    return np.nonzero(mask.ravel())[0].astype(np.int32)
+
+
+def presence_passes(ctx: FrameContext, view, geo, sh, bins, u: float, first_pass: wp.array,
+                    pixels: np.ndarray) -> wp.array:
     """(H*W, 4) the mean of first_pass (presence slot shift 0, which also gave depth and motion)
     and PRESENCE_PASSES - 1 more sharp renders of the same instant, each with the fractional
-    surfaces' presence at the next slot of their sequences."""
+    surfaces' presence at the next slot of their sequences. Only `pixels` (presence_pixels) are
+    rendered again: elsewhere every pass equals the first, and its sum is formed as the passes'
+    additions would form it."""
     dev = ctx.device
     more = wp.zeros_like(first_pass)
-    none = wp.zeros(1, dtype=int, device=dev)
+    listed = wp.array(pixels, dtype=int, device=dev)
     rec_e, rec_hit = wp.zeros((1, 1), dtype=int, device=dev), wp.zeros((1, 1), dtype=wp.vec4, device=dev)
     done = wp.zeros(1, dtype=wp.uint8, device=dev)
     with ctx.timed("render"):
         for j in range(1, PRESENCE_PASSES):
             geo.presence_shift = j
-            launch_pixels(render_sharp, ctx.num_pixels,
-                          lambda first, _n: [view, geo, sh, bins, u, 1.0, none, 0, first, 0, more, rec_e, rec_hit, done],
+            launch_pixels(render_sharp, len(pixels),
+                          lambda first, _n: [view, geo, sh, bins, u, 1.0, listed, 1, first, 0, more, rec_e, rec_hit,
+                                             done],
                           dev, ctx.settings.threads)
         geo.presence_shift = 0
     ctx.counters["presence_passes"] = PRESENCE_PASSES
-    return wp.array((first_pass.numpy() + more.numpy()) / PRESENCE_PASSES, dtype=float, device=dev)
+    ctx.counters["presence_pixels"] = len(pixels) / max(1, ctx.num_pixels)
+    once = first_pass.numpy()
+    total = more.numpy()
+    repeated = np.zeros_like(once)
+    for _ in range(1, PRESENCE_PASSES):
+        repeated += once
+    others = np.ones(len(once), bool)
+    others[pixels] = False
+    total[others] = repeated[others]
+    return wp.array((once + total) / PRESENCE_PASSES, dtype=float, device=dev)
 
 
 def render_velocity(ctx: FrameContext) -> np.ndarray:
@@ -255,7 +282,10 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
                           lambda first, _n: [view, geo, sh, b, u, 0, 2, first, sharp, depth_w, motion_w], dev,
                           s.threads)
         if ctx.scene.any_fractional:
-            sharp = presence_passes(ctx, view, geo, sh, b, u, sharp)
+            fractional = ctx.scene.tri_fractional[tris]
+            pixels = (presence_pixels(tile_bins, fractional, view.tile_size, w, h) if PRESENCE_TILES
+                      else np.arange(ctx.num_pixels, dtype=np.int32))
+            sharp = presence_passes(ctx, view, geo, sh, b, u, sharp, pixels)
     else:
         ctx.sharp_pass(center, 1.0, sharp, cull=not s.velocity_extrude)   # extruded trails fold surfaces
         with ctx.timed("velocity"):
