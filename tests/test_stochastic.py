@@ -72,3 +72,21 @@ def test_static_pixels_take_the_exact_expectation_under_a_moving_shadow(scene_pa
     lit = np.median(lum[a[..., 3] == 1.0])
     # the moving shadow is there, as a time average (darker than lit, lighter than the umbra)
     assert ((lum < 0.9 * lit) & (lum > 0.1 * lit) & (a[..., 3] == 1.0)).sum() > 20
+
+
+def test_still_entries_shaded_once_a_pixel_equal_shading_every_sample(scene_path, monkeypatch):
+    """Nothing moves and translucent layers make the samples differ: under still lights and a
+    shadow map of one instant, a still entry's radiance is the same at every sample, so it is
+    shaded once a pixel and reused; the image equals shading every sample, bit for bit."""
+    from scenes import translucent_layers_stage
+    import warp_blur.methods.stochastic as stochastic
+    path = translucent_layers_stage(scene_path())
+    kw = dict(frame=1, method="stochastic", samples=16, resolution=(96, 72), aovs=(), shadow_map_size=256)
+    kept = wb.render(path, **kw)
+    assert kept.stats["stochastic_still_radiance_kept"] is True
+    monkeypatch.setattr(stochastic, "KEEP_STILL_RADIANCE", False)
+    every = wb.render(path, **kw)
+    assert every.stats["stochastic_still_radiance_kept"] is False
+    np.testing.assert_array_equal(kept.rgba, every.rgba)
+    # the translucent layers are there, partly (a pixel's samples differ)
+    assert np.abs(kept.rgba - wb.render(path, **kw, shadows="off").rgba).max() > 0.05

@@ -7,7 +7,9 @@ the pixel's tile, the time bounds when it can cover the pixel are found from its
 tested; each sample keeps its nearest hit, then is shaded at its own instant. Static triangles
 cover every sample alike, so only the nearest is kept; a pixel where no sample sees a moving
 triangle, under still lights, is shaded once with the samples' exact expectation (a moving
-shadow averaged over the shutter): static content costs what a sharp render costs.
+shadow averaged over the shutter): static content costs what a sharp render costs. Where samples
+do differ (something moves, or fractional opacity samples presence), a still entry under still
+lights and shadow maps of one instant is shaded once per pixel and its radiance reused.
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ from .analytic.intervals import nearest_static
 from .analytic.segments import prepare_motion
 
 SCRATCH_BYTES = 64 * 2**20
+#: tests switch this off to compare against shading still entries at every sample
+KEEP_STILL_RADIANCE = True
 
 
 @wp.func
@@ -63,7 +67,8 @@ def covered_time_bounds(geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> wp.vec
 
 @wp.kernel(enable_backward=False)
 def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins: Bins, moving_bins: Bins,
-                             sub: wp.vec2, n: int, seed: int, lights_static: int, weight: float, first_pixel: int,
+                             sub: wp.vec2, n: int, seed: int, lights_static: int, keep_still: int, weight: float,
+                             first_pixel: int,
                              # outputs (scratch rows are per band: row = tid)
                              times: wp.array2d(dtype=float), best_z: wp.array2d(dtype=float),
                              best_e: wp.array2d(dtype=int), rgba: wp.array2d(dtype=float)):
@@ -131,19 +136,43 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
         else:
             color = dome_over(sh, d, 0.0, 1.0)
     else:
+        # a still entry (the static one, or one kept among the moving entries by its fractional
+        # opacity) under lights that hold still and shadow maps of one instant (nothing moves in
+        # the lights' views) has the same radiance at every sample: shaded once and remembered
+        # (two entries; still lights are one knot in the light table, so this equals shading it
+        # at every sample exactly)
+        keep = keep_still != 0
+        kept_e0 = int(-1)
+        kept_e1 = int(-1)
+        kept_c0 = wp.vec3(0.0, 0.0, 0.0)
+        kept_c1 = wp.vec3(0.0, 0.0, 0.0)
         for j in range(n):
             e = best_e[tid, j]
             if e >= 0:
-                u = times[tid, j]
-                vi = geo.tri_vertices[geo.entry_tri[e]]
-                alpha = float(0.0)
-                if geo.entry_k0[e] != geo.entry_k1[e]:
-                    u0 = float(geo.entry_k0[e]) / float(geo.num_segments)
-                    u1 = float(geo.entry_k1[e]) / float(geo.num_segments)
-                    alpha = (u - u0) / (u1 - u0)
-                hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
-                                         entry_vertex(geo, e, vi[2], alpha), vi)
-                color = color + shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
+                if keep and e == kept_e0:
+                    color = color + kept_c0
+                elif keep and e == kept_e1:
+                    color = color + kept_c1
+                else:
+                    u = times[tid, j]
+                    vi = geo.tri_vertices[geo.entry_tri[e]]
+                    alpha = float(0.0)
+                    still = geo.entry_k0[e] == geo.entry_k1[e]
+                    if not still:
+                        u0 = float(geo.entry_k0[e]) / float(geo.num_segments)
+                        u1 = float(geo.entry_k1[e]) / float(geo.num_segments)
+                        alpha = (u - u0) / (u1 - u0)
+                    hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha),
+                                             entry_vertex(geo, e, vi[1], alpha), entry_vertex(geo, e, vi[2], alpha), vi)
+                    radiance = shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
+                    if keep and still:
+                        if kept_e0 < 0:
+                            kept_e0 = e
+                            kept_c0 = radiance
+                        elif kept_e1 < 0:
+                            kept_e1 = e
+                            kept_c1 = radiance
+                    color = color + radiance
                 cover = cover + 1.0
             else:
                 color = color + dome_at(sh, d, times[tid, j])
@@ -163,12 +192,15 @@ def render_stochastic(ctx: FrameContext) -> np.ndarray:
     subs = ctx.sub_pixel_offsets()
     max_band = max(1, SCRATCH_BYTES // (12 * n))
     lights_static = 1 if plan.lights_static else 0
+    # still entries keep their radiance where it is the same at every sample (see the kernel)
+    keep_still = 1 if KEEP_STILL_RADIANCE and plan.lights_static and sh.shadow_times <= 1 else 0
     for si, sub in enumerate(subs):
         sub_v = wp.vec2(*sub)
         seed = (s.resolved_seed * 7919 + si * 104729) & 0x7FFFFFFF
 
         def inputs(first: int, count: int) -> list:
-            return [view, geo, sh, static_bins, moving_bins, sub_v, n, seed, lights_static, 1.0 / len(subs), first,
+            return [view, geo, sh, static_bins, moving_bins, sub_v, n, seed, lights_static, keep_still, 1.0 / len(subs),
+                    first,
                     wp.empty((count, n), dtype=float, device=dev), wp.empty((count, n), dtype=float, device=dev),
                     wp.empty((count, n), dtype=int, device=dev), rgba]
 
@@ -176,5 +208,6 @@ def render_stochastic(ctx: FrameContext) -> np.ndarray:
             launch_pixels(render_stochastic_kernel, ctx.num_pixels, inputs, dev, s.threads, max_band=max_band,
                           bands_per_thread=FINE_BANDS)
     ctx.counters.update({"samples_per_pixel": n, "seed": s.resolved_seed,
+                         "stochastic_still_radiance_kept": bool(keep_still),
                          "motion_segments": plan.segments_per_prim, "entries": int(len(plan.entry_tri))})
     return rgba.numpy()

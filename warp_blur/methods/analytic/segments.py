@@ -315,7 +315,10 @@ def start_shading(ctx, plan: MotionPlan) -> Callable[[], Shading]:
             num_times = maps.times_for(s.shadow_times)
             with ctx.timed("shadow_total"):
                 shadows = maps.data([(b + 0.5) / num_times for b in range(num_times)], texel_major=True)
-        return make_shading(ctx.scene.material_table, plan.lights, ctx.scene.dome, ctx.device, shadows, options,
+        # lights that hold still are one knot: the same at every time, exactly (between equal knots
+        # the linear read rounds differently at each time)
+        lights = plan.lights[:1] if plan.lights_static else plan.lights
+        return make_shading(ctx.scene.material_table, lights, ctx.scene.dome, ctx.device, shadows, options,
                             textures, dome)
     # nothing to build beside the camera's work, or one core asked for: no helper thread
     if not ctx.may_cast_shadows() or (s.threads or default_threads()) == 1:
