@@ -387,3 +387,20 @@ def test_short_span_follows_the_shading_cap():
     out = wp.zeros(5, dtype=float, device="cpu")
     wp.launch(spans, dim=5, inputs=[caps, out], device="cpu")
     assert np.allclose(out.numpy(), [1 / 8, 1 / 12, 1 / 16, 1 / 16, 1 / 16])
+
+
+def test_still_entries_shaded_once_a_sample_equal_shading_every_interval(scene_path, monkeypatch):
+    """Nothing moves and translucent layers cut each still surface's coverage into many intervals
+    (its presence per time slot): under still lights and a shadow map of one instant, a still
+    entry's radiance is the same in all of them, so the resolve shades it once a sample; the
+    image equals shading every interval, bit for bit, and far fewer intervals are shaded."""
+    from scenes import translucent_layers_stage
+    import warp_blur.methods.analytic as analytic
+    path = translucent_layers_stage(scene_path())
+    kw = dict(frame=1, method="analytic", resolution=(96, 72), aovs=(), shadow_map_size=256)
+    kept = wb.render(path, **kw)
+    monkeypatch.setattr(analytic, "KEEP_STILL_RADIANCE", False)
+    every = wb.render(path, **kw)
+    np.testing.assert_array_equal(kept.rgba, every.rgba)
+    assert kept.stats["intervals_shaded"] < 0.5 * every.stats["intervals_shaded"]
+    assert np.abs(kept.rgba - wb.render(path, **kw, shadows="off").rgba).max() > 0.05

@@ -51,17 +51,11 @@ def presence_threshold(tri: int, sx: float, sy: float, u: float, shift: int) -> 
 
 
 @wp.func
-def cutout_hides(geo: Geometry, tri: int, wb: float, wc: float, u: float, sx: float, sy: float) -> bool:
-    """True when triangle tri's point at barycentrics (1 - wb - wc, wb, wc) is not there for the
-    sample at position (sx, sy) (pixels) and shutter time u."""
-    if geo.has_cutouts == 0:
-        return False
+def cutout_opacity(geo: Geometry, tri: int, wb: float, wc: float) -> float:
+    """Opacity of triangle tri (which has a test: code not -1 or -2) at barycentrics
+    (1 - wb - wc, wb, wc): its constant, its corners' primvar or its texture there."""
     c = geo.tri_cutout[tri]
     code = int(c[0])
-    if code == -1:
-        return False
-    if code == -2:
-        return True
     opacity = c[2]
     if code == -4:
         a = geo.tri_alpha[tri]
@@ -73,9 +67,31 @@ def cutout_hides(geo: Geometry, tri: int, wb: float, wc: float, u: float, sx: fl
             uv = (1.0 - wb - wc) * geo.tri_uvs[3 * tri] + wb * geo.tri_uvs[3 * tri + 1] + wc * geo.tri_uvs[3 * tri + 2]
             lod = geo.tri_lod[tri]
         opacity = binding_value(geo.tex, code, uv, lod)[0]
-    if c[1] > 0.0:
-        return opacity < c[1]
+    return opacity
+
+
+@wp.func
+def opacity_hides(geo: Geometry, tri: int, opacity: float, u: float, sx: float, sy: float) -> bool:
+    """True when a point of triangle tri (which has a test) with this opacity is not there for the
+    sample at (sx, sy) and shutter time u: below a cutout's threshold, or absent at u's slot."""
+    threshold = geo.tri_cutout[tri][1]
+    if threshold > 0.0:
+        return opacity < threshold
     return opacity <= presence_threshold(tri, sx, sy, u, geo.presence_shift)
+
+
+@wp.func
+def cutout_hides(geo: Geometry, tri: int, wb: float, wc: float, u: float, sx: float, sy: float) -> bool:
+    """True when triangle tri's point at barycentrics (1 - wb - wc, wb, wc) is not there for the
+    sample at position (sx, sy) (pixels) and shutter time u."""
+    if geo.has_cutouts == 0:
+        return False
+    code = int(geo.tri_cutout[tri][0])
+    if code == -1:
+        return False
+    if code == -2:
+        return True
+    return opacity_hides(geo, tri, cutout_opacity(geo, tri, wb, wc), u, sx, sy)
 
 
 @wp.func

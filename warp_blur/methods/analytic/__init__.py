@@ -45,6 +45,8 @@ CULL_AT_INSTANTS = False
 # Samples that no moving entry reaches are resolved without storing intervals (shade_static_samples,
 # with the resolve's own weights; tests switch this off to compare against resolving stored intervals).
 DIRECT_STATIC_PIXELS = True
+#: tests switch this off to compare against shading every interval of a still entry
+KEEP_STILL_RADIANCE = True
 # Time slots per shutter at which exact mode tests a moving cutout (with time bits, the bits'
 # own slots): a cutout's mask is point-sampled in time, its edges in space stay exact.
 EXACT_CUTOUT_SLOTS = 256
@@ -140,11 +142,13 @@ class _IntervalPass:
         shading = (self.view, self.geo, self.shading(), self.sub, self.n_shade, self.lights_static)
         pixels = wp.array(pixels_np.astype(np.int32), dtype=int, device=dev)
         spans = wp.array(spans_np.astype(np.int32), dtype=wp.vec2i, device=dev)
+        # still entries shaded once a sample where their radiance is the same at every time
+        keep_still = 1 if KEEP_STILL_RADIANCE and self.lights_static and shading[2].shadow_times <= 1 else 0
         with ctx.timed("resolve"):
             if bits > 0:
                 order = wp.empty(iv_t.shape[0], dtype=int, device=dev)
                 launch_pixels(resolve_bitmask, len(pixels_np),
-                              lambda first, n: [*shading, pixels, spans, iv_t, iv_z, iv_e, bits, self.weight,
+                              lambda first, n: [*shading, pixels, spans, iv_t, iv_z, iv_e, bits, keep_still, self.weight,
                                                 first, first, order,
                                                 wp.zeros((n, 3 * words), dtype=wp.uint32, device=dev),
                                                 self.shaded.band(), self.rgba],

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from ...kernels.cutout import cutout_hides, has_cutout, is_fractional
+from ...kernels.cutout import cutout_hides, cutout_opacity, has_cutout, is_fractional, opacity_hides
 from ...kernels.dome import dome_over
 from ...kernels.kernel_types import Bins, Geometry, Shading, View
 from ...kernels.raster import add_pixel, box_rejects, pixel_tile
@@ -94,6 +94,14 @@ def emit_visible(geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, sx: f
     u_b = m.u0 + s_b * du
     k_a = wp.clamp(int(wp.floor(u_a * r)), 0, geo.cutout_slots - 1)
     k_b = wp.clamp(int(wp.floor(u_b * r)), k_a, geo.cutout_slots - 1)
+    # a still entry shows the same point in every slot: its hit and opacity are found once, and
+    # only its presence is tested per slot (a fractional one's translucency)
+    still = geo.entry_k0[e] == geo.entry_k1[e]
+    hidden_everywhere = int(geo.tri_cutout[tri][0]) == -2
+    opacity = float(0.0)
+    if still:
+        hit_still = plane_hit(o, d, m.a0, m.b0, m.c0)
+        opacity = cutout_opacity(geo, tri, hit_still[2], hit_still[3])
     kept = int(0)
     run = float(-1.0)   # entry time where the current run of kept slots starts (-1: none)
     for k in range(k_a, k_b + 1):
@@ -101,9 +109,15 @@ def emit_visible(geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, sx: f
         hi = wp.min(u_b, float(k + 1) / r)
         if hi > lo or k == k_a:
             s_c = (wp.clamp((float(k) + 0.5) / r, lo, hi) - m.u0) / du
-            hit = plane_hit(o, d, m.a0 + s_c * (m.a1 - m.a0), m.b0 + s_c * (m.b1 - m.b0), m.c0 + s_c * (m.c1 - m.c0))
             s_lo = wp.max(s_a, (lo - m.u0) / du)
-            if cutout_hides(geo, tri, hit[2], hit[3], m.u0 + s_c * du, sx, sy):
+            hides = False
+            if still:
+                hides = hidden_everywhere or opacity_hides(geo, tri, opacity, m.u0 + s_c * du, sx, sy)
+            else:
+                hit = plane_hit(o, d, m.a0 + s_c * (m.a1 - m.a0), m.b0 + s_c * (m.b1 - m.b0),
+                                m.c0 + s_c * (m.c1 - m.c0))
+                hides = cutout_hides(geo, tri, hit[2], hit[3], m.u0 + s_c * du, sx, sy)
+            if hides:
                 if run >= 0.0 and s_lo > run:
                     kept += emit_pieces(e, m, o, d, run, s_lo, limit, base + kept, iv_t, iv_z, iv_e, occ, row, g,
                                         whole)

@@ -261,13 +261,16 @@ def run_color(view: View, geo: Geometry, sh: Shading, o: wp.vec3, d: wp.vec3,
 def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_max: int, lights_static: int,
                     pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
                     iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int), bits: int,
-                    weight: float, first: int, band_first: int,
+                    keep_still: int, weight: float, first: int, band_first: int,
                     # outputs
                     order: wp.array(dtype=int), masks: wp.array2d(dtype=wp.uint32), shaded: wp.array(dtype=int),
                     rgba: wp.array2d(dtype=float)):
     """rgba[pixels[k]] += weight × the resolved colour of listed sample k = first + tid (intervals
     spans[k][0]:spans[k][1] of the chunk's arrays, at sub-pixel position sub); masks is per-thread
-    scratch (band rows, 3 × words: covered, stolen, visible); shaded[0] counts the intervals shaded."""
+    scratch (band rows, 3 × words: covered, stolen, visible); shaded[0] counts the intervals shaded.
+    keep_still = 1 (lights that hold still, shadow maps of one instant): a still entry's radiance is
+    the same over all its intervals (its every piece is shaded as one constant, at any time the
+    same), so it is shaded once a sample and each of its intervals adds it × its visible share."""
     k = first + wp.tid()
     pix = pixels[k]
     row = k - band_first
@@ -280,6 +283,8 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
     o, d = sample_ray(view, pix % view.width, pix // view.width, sub)
     color = wp.vec3(0.0, 0.0, 0.0)
     covered = int(0)
+    kept_e = int(-1)
+    kept_r = wp.vec3(0.0, 0.0, 0.0)
     for ii in range(lo, hi):
         if covered < bits:
             i = order[ii]
@@ -328,9 +333,17 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
                     masks[row, w] = masks[row, w] | mine
                 covered += visible
                 if visible > 0:
-                    shaded[0] = shaded[0] + 1
-                    color = color + visible_radiance(view, geo, sh, iv_e[i], o, d, ti, n_shade_max, lights_static,
-                                                     bits, masks, row, 2 * words)
+                    e = iv_e[i]
+                    if keep_still != 0 and geo.entry_k0[e] == geo.entry_k1[e]:
+                        if e != kept_e:
+                            shaded[0] = shaded[0] + 1
+                            kept_e = e
+                            kept_r = shade_at(view, geo, sh, e, entry_moving(geo, e), o, d, 0.5)
+                        color = color + kept_r * (float(visible) / float(bits))
+                    else:
+                        shaded[0] = shaded[0] + 1
+                        color = color + visible_radiance(view, geo, sh, e, o, d, ti, n_shade_max, lights_static,
+                                                         bits, masks, row, 2 * words)
     color = color + dome_uncovered(sh, d, masks, row, words, bits, covered)
     rgba[pix, 0] = rgba[pix, 0] + weight * color[0]
     rgba[pix, 1] = rgba[pix, 1] + weight * color[1]
