@@ -18,7 +18,7 @@ import numpy as np
 import warp as wp
 
 from .frame import FrameContext
-from ..kernels.cutout import cutout_hides
+from ..kernels.cutout import cutout_hides, cutout_opacity, has_cutout, opacity_hides
 from ..kernels.dome import dome_at, dome_over
 from ..kernels.kernel_types import Bins, Geometry, Shading, View
 from ..core.parallel import FINE_BANDS, launch_pixels
@@ -105,18 +105,35 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
                 u1 = 1.0
             j0 = wp.clamp(int(wp.floor(bounds[0] * float(n))), 0, n - 1)
             j1 = wp.clamp(int(wp.floor(bounds[1] * float(n))), 0, n - 1)
-            for j in range(j0, j1 + 1):
-                u = times[tid, j]
-                if u >= u0 and u <= u1:
-                    alpha = float(0.0)
-                    if not still:
+            if still:
+                # the same point at every sample: hit and opacity once, its presence per sample
+                tri = geo.entry_tri[e]
+                hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], 0.0), entry_vertex(geo, e, vi[1], 0.0),
+                                         entry_vertex(geo, e, vi[2], 0.0), vi)
+                if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
+                    tested = has_cutout(geo, tri)
+                    hidden_everywhere = tested and int(geo.tri_cutout[tri][0]) == -2
+                    opacity = float(1.0)
+                    if tested:
+                        opacity = cutout_opacity(geo, tri, hit[2], hit[3])
+                    for j in range(j0, j1 + 1):
+                        u = times[tid, j]
+                        if hit[1] < best_z[tid, j] and not hidden_everywhere \
+                                and not (tested and opacity_hides(geo, tri, opacity, u, x, y)):
+                            best_z[tid, j] = hit[1]
+                            best_e[tid, j] = e
+            else:
+                for j in range(j0, j1 + 1):
+                    u = times[tid, j]
+                    if u >= u0 and u <= u1:
                         alpha = (u - u0) / (u1 - u0)
-                    hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
-                                             entry_vertex(geo, e, vi[2], alpha), vi)
-                    if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far and hit[1] < best_z[tid, j] \
-                            and not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3], u, x, y):
-                        best_z[tid, j] = hit[1]
-                        best_e[tid, j] = e
+                        hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha),
+                                                 entry_vertex(geo, e, vi[1], alpha), entry_vertex(geo, e, vi[2], alpha),
+                                                 vi)
+                        if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far and hit[1] < best_z[tid, j] \
+                                and not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3], u, x, y):
+                            best_z[tid, j] = hit[1]
+                            best_e[tid, j] = e
     moving_seen = int(0)
     for j in range(n):
         if best_e[tid, j] >= 0 and best_z[tid, j] < z_static:
