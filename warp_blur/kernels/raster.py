@@ -22,6 +22,15 @@ def pixel_tile(view: View, px: int, py: int) -> int:
 
 
 @wp.func
+def listed_pixel(view: View, pixels: wp.array(dtype=int), k: int):
+    """(flat index, x, y, screen tile) of listed pixel pixels[k]."""
+    pix = pixels[k]
+    px = pix % view.width
+    py = pix // view.width
+    return pix, px, py, pixel_tile(view, px, py)
+
+
+@wp.func
 def box_rejects(bins: Bins, e: int, x: float, y: float) -> bool:
     """True when the sample (x, y pixels) lies outside entry e's swept pixel box or band."""
     b = bins.entry_boxes[e]
@@ -223,10 +232,7 @@ def record_nearest(view: View, geo: Geometry, sh: Shading, bins: Bins, u: float,
     shadows_steady_at), the others to be shaded per instant. Nothing is added to the image:
     render_over_recorded composites it."""
     k = first + wp.tid()
-    pix = pixels[k]
-    px = pix % view.width
-    py = pix // view.width
-    tile = pixel_tile(view, px, py)
+    pix, px, py, tile = listed_pixel(view, pixels, k)
     n = view.spatial
     for sy in range(n):
         for sx in range(n):
@@ -261,10 +267,7 @@ def render_over_recorded(view: View, geo: Geometry, sh: Shading, bins: Bins, u: 
     recorded one with its recorded radiance where kept = 1 and rec_kept says it was kept, else
     shaded at u."""
     k = first + wp.tid()
-    pix = pixels[k]
-    px = pix % view.width
-    py = pix // view.width
-    tile = pixel_tile(view, px, py)
+    pix, px, py, tile = listed_pixel(view, pixels, k)
     n = view.spatial
     color = wp.vec3(0.0, 0.0, 0.0)
     cover = float(0.0)
@@ -308,10 +311,7 @@ def render_over_recorded_instants(view: View, geo: Geometry, sh: Shading, bins: 
     The recorded surface shows its recorded radiance (recorded with shade = 1). Each instant adds
     weight × its colour as render_over_recorded's pass at that instant would, in the same order."""
     k = first + wp.tid()
-    pix = pixels[k]
-    px = pix % view.width
-    py = pix // view.width
-    tile = pixel_tile(view, px, py)
+    pix, px, py, tile = listed_pixel(view, pixels, k)
     n = view.spatial
     slots = INSTANT_CACHE_SLOTS
     for c in range(n * n * slots):
