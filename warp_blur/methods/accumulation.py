@@ -23,6 +23,7 @@ import numpy as np
 import warp as wp
 
 from ..core.parallel import run_prepared
+from ..kernels.raster import INSTANT_CACHE_SLOTS
 from ..raster.binning import SAMPLE_MARGIN_PX, TILE_SIZE, entry_pixel_bounds
 from .frame import FrameContext
 
@@ -38,6 +39,9 @@ INSTANTS_IN_ONE_PASS = True
 RECORD_BYTES = 4 + 16
 #: bytes per recorded radiance and its flag (moving tiles under still lights)
 COLOR_BYTES = 13
+#: bytes per moving-tile sub-sample of the one-pass instants' remembered radiances (a triangle
+#: index and a radiance per slot), held for that pass
+PRESENCE_CACHE_BYTES = int(INSTANT_CACHE_SLOTS) * (4 + 12)
 
 
 def instants(n: int) -> np.ndarray:
@@ -165,7 +169,9 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
         if still_bytes > budget:
             plan = None
         else:
-            moving_bytes = len(plan.pixels) * subs * (RECORD_BYTES + (COLOR_BYTES if plan.lights_still else 0))
+            one_pass = INSTANTS_IN_ONE_PASS and plan.steady and plan.nothing_moves
+            moving_bytes = len(plan.pixels) * subs * (RECORD_BYTES + (COLOR_BYTES if plan.lights_still else 0)
+                                                      + (PRESENCE_CACHE_BYTES if one_pass else 0))
             split = MOVING_SPLIT and (plan.needed & ~plan.changing).any() and still_bytes + moving_bytes <= budget
     # each pass's host work (snapshot, binning, uploads, shadow maps) is done on a helper thread
     # while the pass before it renders
