@@ -16,6 +16,16 @@ def _brdf_cases(n: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), l: wp.ar
     out[i] = brdf(n[i], v[i], l[i], diffuse[i], f0[i], roughness[i])
 
 
+@wp.kernel(enable_backward=False)
+def _brdf_headlit(n: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), diffuse: wp.array(dtype=wp.vec3),
+                  f0: wp.array(dtype=wp.vec3), roughness: wp.array(dtype=float), out: wp.array(dtype=wp.vec3)):
+    """brdf with the normal and the view normalised in float32, as the renderer's are, and the
+    light along the view (a headlight)."""
+    i = wp.tid()
+    view = wp.normalize(v[i])
+    out[i] = brdf(wp.normalize(n[i]), view, view, diffuse[i], f0[i], roughness[i])
+
+
 def _unit(rng: np.random.Generator, count: int) -> np.ndarray:
     x = rng.normal(size=(count, 3))
     return x / np.linalg.norm(x, axis=1, keepdims=True)
@@ -67,3 +77,27 @@ def test_brdf_matches_the_closed_form_in_float64():
     assert rel.max() < 2e-3, rel.max()
     # and the lit share is not trivially diffuse: the specular lobe is exercised
     assert np.mean(np.abs(want - r32[3] / np.pi).max(axis=1) > 1e-2) > 0.5
+
+
+def test_brdf_stays_finite_where_normal_view_and_light_align():
+    """The smoothest surface the materials allow (roughness 0.02) seen and lit along its normal
+    (a headlight on a face turning through the view): unit vectors rounded to float32 can make
+    n·h a hair above 1, where the GGX denominator cancels to 0. Every value must stay finite, and
+    no larger than the lobe's peak, 1 / (π α²) scaled by the Fresnel and geometry terms."""
+    rng = np.random.default_rng(11)
+    count = 20000
+    base = _unit(rng, count)
+    n = base + rng.normal(scale=1e-7, size=(count, 3))
+    v = base + rng.normal(scale=1e-7, size=(count, 3))
+    diffuse = np.full((count, 3), 0.5)
+    f0 = np.full((count, 3), 0.04)
+    roughness = np.full(count, 0.02)
+    arrays = [wp.array(x.astype(np.float32), dtype=wp.vec3, device="cpu") for x in (n, v, diffuse, f0)]
+    out = wp.zeros(count, dtype=wp.vec3, device="cpu")
+    wp.launch(_brdf_headlit, dim=count, inputs=[*arrays, wp.array(roughness.astype(np.float32), device="cpu"), out],
+              device="cpu")
+    got = out.numpy()
+    assert np.all(np.isfinite(got))
+    alpha = 0.02 ** 2
+    peak = 0.5 / np.pi + 1.0 / (np.pi * alpha ** 2) / 4.0   # F ≤ 1, G ≤ 1, n·l = n·v = 1
+    assert got.max() <= peak * 1.01

@@ -39,8 +39,10 @@ def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, diffuse: wp.vec3, f0: wp.vec3, roug
     result = diffuse / PI
     if nl > 0.0 and nv > 0.0 and wp.length(f0) > 0.0:
         h = wp.normalize(l + v)
-        nh = wp.max(wp.dot(n, h), 0.0)
-        vh = wp.max(wp.dot(v, h), 0.0)
+        # clamped to 1 too: unit vectors rounded in float32 can give a dot product just above 1,
+        # where a smooth surface's GGX denominator nh² (a² - 1) + 1 cancels to 0 (an infinite pixel)
+        nh = wp.clamp(wp.dot(n, h), 0.0, 1.0)
+        vh = wp.clamp(wp.dot(v, h), 0.0, 1.0)
         a = roughness * roughness
         a2 = a * a
         den = nh * nh * (a2 - 1.0) + 1.0
