@@ -27,21 +27,24 @@ def wrap_index(i: int, n: int, mode: int) -> int:
 
 
 @wp.func
-def texel(tx: Textures, level: int, x: int, y: int, wrap_s: int, wrap_t: int) -> wp.vec4:
-    w = tx.levels[level, 1]
-    h = tx.levels[level, 2]
-    xi = wrap_index(x, w, wrap_s)
-    yi = wrap_index(y, h, wrap_t)
+def texel_at(tx: Textures, base: int, w: int, xi: int, yi: int) -> wp.vec4:
+    """Texel (xi, yi) of the level whose first texel is base and width w; black where an index
+    is -1 (wrap_index's black border)."""
     if xi < 0 or yi < 0:
         return wp.vec4(0.0, 0.0, 0.0, 0.0)
-    return tx.texels[tx.levels[level, 0] + yi * w + xi]
+    return tx.texels[base + yi * w + xi]
 
 
 @wp.func
 def bilinear(tx: Textures, level: int, uv: wp.vec2, wrap_s: int, wrap_t: int) -> wp.vec4:
-    """Texel-centre bilinear lookup; uv in USD's convention (t = 0 at the image's bottom row)."""
-    w = float(tx.levels[level, 1])
-    h = float(tx.levels[level, 2])
+    """Texel-centre bilinear lookup; uv in USD's convention (t = 0 at the image's bottom row).
+    The four texels are read directly where they lie inside the level (the common case), and
+    through the wrap modes at its border."""
+    base = tx.levels[level, 0]
+    wi = tx.levels[level, 1]
+    hi = tx.levels[level, 2]
+    w = float(wi)
+    h = float(hi)
     x = uv[0] * w - 0.5
     y = (1.0 - uv[1]) * h - 0.5
     x0 = wp.floor(x)
@@ -50,10 +53,25 @@ def bilinear(tx: Textures, level: int, uv: wp.vec2, wrap_s: int, wrap_t: int) ->
     fy = y - y0
     ix = int(x0)
     iy = int(y0)
-    a = texel(tx, level, ix, iy, wrap_s, wrap_t)
-    b = texel(tx, level, ix + 1, iy, wrap_s, wrap_t)
-    c = texel(tx, level, ix, iy + 1, wrap_s, wrap_t)
-    d = texel(tx, level, ix + 1, iy + 1, wrap_s, wrap_t)
+    a = wp.vec4()
+    b = wp.vec4()
+    c = wp.vec4()
+    d = wp.vec4()
+    if ix >= 0 and ix + 1 < wi and iy >= 0 and iy + 1 < hi:
+        k = base + iy * wi + ix
+        a = tx.texels[k]
+        b = tx.texels[k + 1]
+        c = tx.texels[k + wi]
+        d = tx.texels[k + wi + 1]
+    else:
+        x_0 = wrap_index(ix, wi, wrap_s)
+        x_1 = wrap_index(ix + 1, wi, wrap_s)
+        y_0 = wrap_index(iy, hi, wrap_t)
+        y_1 = wrap_index(iy + 1, hi, wrap_t)
+        a = texel_at(tx, base, wi, x_0, y_0)
+        b = texel_at(tx, base, wi, x_1, y_0)
+        c = texel_at(tx, base, wi, x_0, y_1)
+        d = texel_at(tx, base, wi, x_1, y_1)
     return (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy
 
 
