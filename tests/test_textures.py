@@ -227,3 +227,44 @@ def test_a_renderer_shows_a_texture_rewritten_between_frames(scene_path):
     Image.fromarray(np.full((8, 8, 3), 200, np.uint8)).save(os.path.join(os.path.dirname(path), "tex.png"))
     after = r.render(1.0).rgba[12, 16, 0]
     assert before == pytest.approx(64 / 255, abs=2e-3) and after == pytest.approx(200 / 255, abs=2e-3)
+
+
+def test_roughness_and_metallic_from_one_texture_read_it_once_alike(scene_path):
+    """glTF's metallic-roughness texture (roughness from g, metallic from b): both inputs read
+    one texture sample per shading. The image equals the one where metallic reads a copy of the
+    file (a texture of its own, read separately), bit for bit, lit by a sun."""
+    from authoring import add_distant_light
+    from pxr import Sdf, UsdShade
+    rng = np.random.default_rng(3)
+    texels = (rng.random((16, 16, 3)) * 255).astype(np.uint8)
+    images = []
+    for copy in (False, True):
+        path = _textured_quad_stage(scene_path(), texels, input_name="roughness", output="g")
+        folder = os.path.dirname(path)
+        Image.fromarray(texels).save(os.path.join(folder, "tex_copy.png"))
+        from pxr import Usd
+        stage = Usd.Stage.Open(path)
+        surface = UsdShade.Shader.Get(stage, "/World/Looks/Tex/PreviewSurface")
+        surface.GetInput("diffuseColor").Set((0.6, 0.5, 0.4))
+        surface.GetInput("useSpecularWorkflow").Set(0)   # the metallic workflow: metallic is read
+        if copy:
+            other = UsdShade.Shader.Define(stage, "/World/Looks/Tex/Copy")
+            other.CreateIdAttr("UsdUVTexture")
+            other.CreateInput("file", Sdf.ValueTypeNames.Asset).Set("./tex_copy.png")
+            other.CreateInput("sourceColorSpace", Sdf.ValueTypeNames.Token).Set("raw")
+            for wrap in ("wrapS", "wrapT"):
+                other.CreateInput(wrap, Sdf.ValueTypeNames.Token).Set("clamp")
+            reader = UsdShade.Shader.Get(stage, "/World/Looks/Tex/StReader")
+            other.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(reader.ConnectableAPI(), "result")
+            source = other
+        else:
+            source = UsdShade.Shader.Get(stage, "/World/Looks/Tex/Texture")
+        source.CreateOutput("b", Sdf.ValueTypeNames.Float)
+        surface.CreateInput("metallic", Sdf.ValueTypeNames.Float).ConnectToSource(source.ConnectableAPI(), "b")
+        add_distant_light(stage, "/World/Sun", intensity=3.0, rotate=(-20, 15, 0))
+        stage.GetRootLayer().Save()
+        images.append(wb.render(path, frame=1, method="accumulation", samples=1, resolution=(W, H),
+                                shutter=(0.0, 0.0), aovs=()).rgba)
+    np.testing.assert_array_equal(images[0], images[1])
+    inside = images[0][H // 2, W // 4:3 * W // 4, :3]
+    assert inside.std() > 0.01   # roughness and metallic vary over the quad

@@ -21,7 +21,7 @@ from .dome import dome_ambient
 from .rays import entry_normal, entry_vertex
 from .light_table import light_value, light_vec
 from .shadow_lookup import light_taps_steady, light_visibility
-from .texture_lookup import binding_value
+from .texture_lookup import binding_output, binding_sample, binding_value, same_sample
 
 PI = wp.constant(3.14159265358979)
 
@@ -264,11 +264,19 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
             diffuse = binding_value(sh.tex, int(sh.materials[m, 12]), uv, lod)
         if sh.materials[m, 13] >= 0.0:
             emissive = binding_value(sh.tex, int(sh.materials[m, 13]), uv, lod)
-        if sh.materials[m, 14] >= 0.0:
-            roughness = wp.clamp(binding_value(sh.tex, int(sh.materials[m, 14]), uv, lod)[0], 0.02, 1.0)
+        b_rough = int(sh.materials[m, 14])
+        b_metal = int(sh.materials[m, 15])
         metallic = sh.materials[m, 19]
-        if sh.materials[m, 15] >= 0.0:
-            metallic = wp.clamp(binding_value(sh.tex, int(sh.materials[m, 15]), uv, lod)[0], 0.0, 1.0)
+        if b_rough >= 0 and b_metal >= 0 and same_sample(sh.tex, b_rough, b_metal):
+            # one texture read for both (a metallic-roughness texture): the same sample, two channels
+            c = binding_sample(sh.tex, b_rough, uv, lod)
+            roughness = wp.clamp(binding_output(sh.tex, b_rough, c)[0], 0.02, 1.0)
+            metallic = wp.clamp(binding_output(sh.tex, b_metal, c)[0], 0.0, 1.0)
+        else:
+            if b_rough >= 0:
+                roughness = wp.clamp(binding_value(sh.tex, b_rough, uv, lod)[0], 0.02, 1.0)
+            if b_metal >= 0:
+                metallic = wp.clamp(binding_value(sh.tex, b_metal, uv, lod)[0], 0.0, 1.0)
         if sh.materials[m, 17] > 0.5:
             dielectric = sh.materials[m, 18]
             f0 = (1.0 - metallic) * wp.vec3(dielectric, dielectric, dielectric) + metallic * diffuse

@@ -92,11 +92,11 @@ def sample_texture(tx: Textures, tex: int, uv: wp.vec2, lod: float) -> wp.vec4:
 
 
 @wp.func
-def binding_value(tx: Textures, b: int, uv: wp.vec2, lod_base: float) -> wp.vec3:
-    """A material input read from binding b: rgb for output 'rgb', else the one channel in x, y, z.
-    lod_base is log2 of the surface's texture-coordinate span per pixel (textures.py)."""
+def binding_sample(tx: Textures, b: int, uv: wp.vec2, lod_base: float) -> wp.vec4:
+    """The filtered texture sample binding b reads at surface coordinates uv (its transform, UDIM
+    tile and level applied), before its scale, bias and output channel. lod_base is log2 of the
+    surface's texture-coordinate span per pixel (textures.py)."""
     tex = int(tx.bindings[b, 0])
-    channel = int(tx.bindings[b, 1])
     # a UsdTransform2d between the primvar and the texture (identity when none)
     st = wp.vec2(tx.bindings[b, 11] * uv[0] + tx.bindings[b, 12] * uv[1] + tx.bindings[b, 15],
                  tx.bindings[b, 13] * uv[0] + tx.bindings[b, 14] * uv[1] + tx.bindings[b, 16])
@@ -107,10 +107,37 @@ def binding_value(tx: Textures, b: int, uv: wp.vec2, lod_base: float) -> wp.vec3
         st = wp.vec2(st[0] - fu, st[1] - fv)
     first = tx.textures[tex, 0]
     side = float(wp.max(tx.levels[first, 1], tx.levels[first, 2]))
-    c = sample_texture(tx, tex, st, lod_base + tx.bindings[b, 17] + wp.log2(side))
+    return sample_texture(tx, tex, st, lod_base + tx.bindings[b, 17] + wp.log2(side))
+
+
+@wp.func
+def binding_output(tx: Textures, b: int, c: wp.vec4) -> wp.vec3:
+    """Binding b's value from its texture sample c: rgb for output 'rgb', else the one channel in
+    x, y, z (scale and bias applied)."""
+    channel = int(tx.bindings[b, 1])
     v = wp.vec4(c[0] * tx.bindings[b, 2] + tx.bindings[b, 6], c[1] * tx.bindings[b, 3] + tx.bindings[b, 7],
                 c[2] * tx.bindings[b, 4] + tx.bindings[b, 8], c[3] * tx.bindings[b, 5] + tx.bindings[b, 9])
     if channel == 0:
         return wp.vec3(v[0], v[1], v[2])
     s = v[channel - 1]
     return wp.vec3(s, s, s)
+
+
+@wp.func
+def binding_value(tx: Textures, b: int, uv: wp.vec2, lod_base: float) -> wp.vec3:
+    """A material input read from binding b at surface coordinates uv: rgb for output 'rgb', else
+    the one channel in x, y, z."""
+    return binding_output(tx, b, binding_sample(tx, b, uv, lod_base))
+
+
+@wp.func
+def same_sample(tx: Textures, a: int, b: int) -> bool:
+    """True when bindings a and b read the same texture the same way (UDIM flag, transform, level
+    bias): their samples at any point are equal, only scale, bias and channel may differ (glTF's
+    metallic-roughness texture, read as roughness from g and metallic from b)."""
+    if tx.bindings[a, 0] != tx.bindings[b, 0]:
+        return False
+    for col in range(10, 18):
+        if tx.bindings[a, col] != tx.bindings[b, col]:
+            return False
+    return True
