@@ -250,3 +250,53 @@ def test_a_gprim_dimension_of_an_unknown_type_falls_back_to_the_schemas_with_a_w
             assert any("/World/Box.size" in w and "not a number" in w for w in result.stats["warnings"])
     assert images["fallback"][..., 3].mean() > 0.05   # the cube is there
     np.testing.assert_array_equal(images["bad"], images["fallback"])
+
+
+@pytest.mark.parametrize("distance", [1e30, 1e200])
+@pytest.mark.parametrize("method", ["analytic", "stochastic", "accumulation", "velocity"])
+def test_a_camera_absurdly_far_away_renders_what_it_sees(tmp_path, scene_path, method, distance):
+    """A camera translated 1e30 or 1e200 from a scene near the origin (a fuzz mutant of the
+    shadows stage): the general 4×4 inverse called its transform singular, or silently wrong,
+    and every frame failed. The scene lies beyond the far plane: an empty frame, written."""
+    from scenes import emissive_quad_stage
+    from pxr import Gf, Usd, UsdGeom
+    path = emissive_quad_stage(scene_path())
+    stage = Usd.Stage.Open(path)
+    cam = UsdGeom.Xformable(stage.GetPrimAtPath("/World/Cam"))
+    for op in cam.GetOrderedXformOps():
+        if op.GetOpType() == UsdGeom.XformOp.TypeTranslate:
+            op.Set(Gf.Vec3d(0.0, 5.5, -distance))
+    cam.AddRotateXOp(opSuffix="tilt").Set(-30.0)   # a turned camera: LU then fails on the far translation
+    stage.GetRootLayer().Save()
+    out = str(tmp_path / "far.exr")
+    code, lines = _cli("render", path, "-o", out, "--frame", "1", "--resolution", "16x12", "--method", method,
+                       "--samples", "2", "--quiet")
+    assert code == 0 and os.path.exists(out), lines
+    from warp_blur.output.files import read_exr
+    img = read_exr(out)["RGBA"]
+    assert np.isfinite(img).all() and img[..., 3].max() == 0.0
+
+
+def test_a_camera_with_a_zero_scale_exits_2_naming_it(tmp_path, scene_path):
+    from scenes import emissive_quad_stage
+    from pxr import Gf, Usd, UsdGeom
+    path = emissive_quad_stage(scene_path())
+    stage = Usd.Stage.Open(path)
+    UsdGeom.Xformable(stage.GetPrimAtPath("/World/Cam")).AddScaleOp(opSuffix="flat").Set(Gf.Vec3f(0.0, 0.0, 0.0))
+    stage.GetRootLayer().Save()
+    out = str(tmp_path / "a.exr")
+    code, lines = _cli("render", path, "-o", out, "--frame", "1", "--resolution", "16x12", "--method", "analytic")
+    assert code == 2 and len(lines) == 1 and "/World/Cam" in lines[0] and "inverted" in lines[0]
+    assert not os.path.exists(out)
+
+
+def test_invert_affine_inverts_far_transforms_exactly():
+    from warp_blur.core.affine import invert_affine
+    c, s = np.cos(0.3), np.sin(0.3)
+    for t in (5.0, 1e30, 1e200):
+        m = np.array([[1, 0, 0, 0], [0, c, s, 0], [0, -s, c, 0], [2.0, 5.5, -t, 1]], np.float64)
+        inv = invert_affine(m)
+        np.testing.assert_allclose(inv[:3, :3], m[:3, :3].T, atol=1e-15)
+        np.testing.assert_allclose(inv[3, :3], -m[3, :3] @ m[:3, :3].T, rtol=1e-12)
+    with pytest.raises(np.linalg.LinAlgError):
+        invert_affine(np.diag([0.0, 1.0, 1.0, 1.0]))

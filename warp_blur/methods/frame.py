@@ -17,6 +17,7 @@ from ..raster.culling import hidden_back_faces
 from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_shading, make_view
 from ..kernels.kernel_types import Geometry
 from ..core import progress
+from ..core.affine import invert_affine
 from ..core.parallel import FINE_BANDS, launch_pixels
 from ..kernels.raster import (INSTANT_CACHE_SLOTS, record_nearest, render_depth_motion, render_over_recorded,
                               render_over_recorded_instants, render_sharp, shade_recorded)
@@ -281,7 +282,7 @@ class FrameContext:
             h = 0.25 / self.instants
             other = self.snapshot(u + h if u + h <= 1.0 else u - h, with_normals=False)
         u2 = self.snapshot_fraction(other)
-        to_this_camera = np.linalg.inv(other.cam_from_world) @ snapshot.cam_from_world   # row vectors
+        to_this_camera = invert_affine(other.cam_from_world) @ snapshot.cam_from_world   # row vectors
         moved = other.positions @ to_this_camera[:3, :3] + to_this_camera[3, :3]
         velocities = (moved - snapshot.positions) / (u2 - u)
         self._velocities = (snapshot.time, velocities)

@@ -31,6 +31,7 @@ import warp as wp
 from ..raster.device_data import make_bins, make_geometry
 from .frame import FrameContext
 from ..core.parallel import launch_pixels
+from ..core.affine import invert_affine
 from ..kernels.raster import render_depth_motion, render_sharp, render_sharp_depth_motion
 from ..usd.normals import vertex_normals
 
@@ -118,7 +119,7 @@ def camera_motion_from_depth(ctx: FrameContext, depth: np.ndarray, cfw_open: np.
     if not proj.orthographic:
         # nothing hit: the dome, infinitely far, moves with the camera's turn alone (a direction, w = 0)
         p[far] = np.stack([wx[far], wy[far], -np.ones(far.sum()), np.zeros(far.sum())], -1)
-    center_to_world = np.linalg.inv(cfw_center)
+    center_to_world = invert_affine(cfw_center)
     p_open = (p @ (center_to_world @ cfw_open))[..., :3]
     p_close = (p @ (center_to_world @ cfw_close))[..., :3]
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -254,7 +255,7 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
     camera_moves = not (np.array_equal(cfw[0], cfw[1]) and np.array_equal(cfw[1], cfw[2]))
     with ctx.timed("velocity"):
         # vertex positions at open and close seen from the centre camera (object motion only)
-        to_center = [np.linalg.inv(c) @ cfw[1] for c in cfw]
+        to_center = [invert_affine(c) @ cfw[1] for c in cfw]
         knots = [sn.positions @ m[:3, :3] + m[3, :3] for sn, m in zip(snaps, to_center)]
         center = snaps[1]
         if s.velocity_extrude:

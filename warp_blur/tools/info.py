@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from pxr import UsdGeom
 
+from ..core.affine import invert_affine
 from ..usd.lights import DISTANT, DISK, RECT, SPHERE
 from ..usd.framing import is_framing_camera, place_framing_camera
 from ..core.memory import frame_bytes
@@ -69,7 +70,7 @@ def screen_motion(proj, open_s, close_s) -> tuple[np.ndarray, np.ndarray, np.nda
     NaN for vertices far outside the picture or behind the near plane."""
     def world(s):
         p = np.c_[s.positions, np.ones(len(s.positions))]
-        return p @ np.linalg.inv(s.cam_from_world)
+        return p @ invert_affine(s.cam_from_world)
 
     def px(points_world, cam_from_world):
         return proj.project((points_world @ cam_from_world)[:, :3])

@@ -13,6 +13,7 @@ from typing import Callable
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdShade
 
+from ..core.affine import camera_from_world, invert_affine
 from ..core.errors import InvalidGeometryError
 from .dome import dome_map
 from .lights import dome_radiance, find_lights, headlight_table, light_table
@@ -288,8 +289,7 @@ class Scene:
         if len(tris) == 0:
             return
         material, flags, blur = self._common(prim, t)
-        if smooth:
-            flags |= FLAG_SMOOTH
+        flags |= FLAG_SMOOTH if smooth else 0
         if smooth and not skin and not hasattr(self, "_subdivision_level"):
             self._subdivision_level = stage_level(self.stage, t)
         refined = mesh_refinement(UsdGeom.Mesh(prim), t, npts, self._mesh_level(prim, points_at)) \
@@ -410,15 +410,14 @@ class Scene:
                     continue
                 material, flags, blur = self._common(sub, t)
                 colors, uvs, opacity = self._surface_primvars(sub, t, material, tris, face_of_tri, corners)
-                if smooth:
-                    flags |= FLAG_SMOOTH
+                flags |= FLAG_SMOOTH if smooth else 0
 
                 def transforms_at(time: float, cache: UsdGeom.XformCache, sub=sub, root=proto_root,
                                   sel=sel) -> np.ndarray:
                     sub_w = np.array(cache.GetLocalToWorldTransform(sub), np.float64)
                     root_w = np.array(cache.GetLocalToWorldTransform(root), np.float64)
                     inst_w = np.array(cache.GetLocalToWorldTransform(prim), np.float64)
-                    sub_in_root = sub_w @ np.linalg.inv(root_w)
+                    sub_in_root = sub_w @ invert_affine(root_w)
                     return sub_in_root[None] @ all_transforms(time)[sel] @ inst_w[None]
 
                 self.units.append(GeomUnit(
@@ -497,7 +496,7 @@ class Scene:
     def cam_from_world(self, time: float) -> np.ndarray:
         """(4, 4) float64 world -> camera matrix (row vectors) at a shutter time."""
         cam_to_world = np.array(self._xf_cache(time).GetLocalToWorldTransform(self.camera.GetPrim()), np.float64)
-        return np.linalg.inv(cam_to_world)
+        return camera_from_world(cam_to_world, str(self.camera.GetPath()), time)
 
     def vertex_normals(self, positions: np.ndarray) -> np.ndarray:
         """vertex_normals(positions, tri_vertices) (V, 3) float32; around the vertices that moved
