@@ -300,3 +300,31 @@ def test_invert_affine_inverts_far_transforms_exactly():
         np.testing.assert_allclose(inv[3, :3], -m[3, :3] @ m[:3, :3].T, rtol=1e-12)
     with pytest.raises(np.linalg.LinAlgError):
         invert_affine(np.diag([0.0, 1.0, 1.0, 1.0]))
+
+
+def test_zero_scales_on_a_mesh_with_normals_and_on_a_textured_dome_render(tmp_path, scene_path):
+    """Valid USD that inverted a singular matrix and failed the frame: a mesh with authored
+    normals scaled to zero (collapsed, so nothing of it shows) and a textured dome light scaled to
+    zero (no orientation: its map is read unrotated, with a warning)."""
+    from PIL import Image
+    from pxr import Gf, Usd, UsdGeom, UsdLux, Vt
+    from scenes import emissive_quad_stage
+    path = emissive_quad_stage(scene_path(), with_light=True)
+    stage = Usd.Stage.Open(path)
+    mesh = next(UsdGeom.Mesh(p) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh))
+    count = len(mesh.GetPointsAttr().Get())
+    mesh.CreateNormalsAttr(Vt.Vec3fArray([Gf.Vec3f(0, 0, 1)] * count))
+    mesh.SetNormalsInterpolation("vertex")
+    UsdGeom.Xformable(mesh).AddScaleOp(opSuffix="flat").Set(Gf.Vec3f(0.0, 0.0, 0.0))
+    Image.fromarray(np.full((8, 16, 3), 128, np.uint8)).save(str(tmp_path / "sky.png"))
+    dome = UsdLux.DomeLight.Define(stage, "/World/Sky")
+    dome.CreateTextureFileAttr(str(tmp_path / "sky.png"))
+    UsdGeom.Xformable(dome).AddScaleOp().Set(Gf.Vec3f(0.0, 0.0, 0.0))
+    stage.GetRootLayer().Save()
+    for method in ("analytic", "velocity"):
+        out = str(tmp_path / f"{method}.exr")
+        code, lines = _cli("render", path, "-o", out, "--frame", "1", "--resolution", "16x12", "--method", method)
+        assert code == 0 and os.path.exists(out), lines
+        from warp_blur.output.files import read_exr
+        img = read_exr(out)["RGBA"]
+        assert np.isfinite(img).all() and img[..., 3].max() == 0.0 and img[..., :3].min() > 0.0   # the sky only

@@ -107,6 +107,11 @@ def dome_map(prim: Usd.Prim | None, frame: float, radiance: np.ndarray, textures
     world = _pole_rotation(prim) @ world
     world = world / np.maximum(np.linalg.norm(world, axis=1, keepdims=True), 1e-30)
     # d_world = d_dome @ world, so d_dome = d_world @ world^-1 (= world^T for a rotation)
-    rotation = np.linalg.inv(world)
+    try:
+        rotation = np.linalg.inv(world)
+    except np.linalg.LinAlgError:   # a zero scale leaves no orientation
+        warn_once(f"domexf:{path}", f"dome light {path}: its transform has no orientation (a zero scale); "
+                                    "its map is read unrotated")
+        rotation = np.eye(3)
     return DomeMap(binding, rotation, coeffs.astype(np.float32), mean.astype(np.float32))
 

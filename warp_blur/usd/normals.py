@@ -137,7 +137,11 @@ def transform_normals(normals: np.ndarray, cam_from_local: np.ndarray) -> np.nda
     """(I·N, 3) float32 unit camera-space normals of (N, 3) local normals under (I, 4, 4) row-vector
     transforms (the inverse transpose of each linear part)."""
     lin = cam_from_local[:, :3, :3]
-    inv_t = np.transpose(np.linalg.inv(lin), (0, 2, 1))
+    try:
+        inv = np.linalg.inv(lin)
+    except np.linalg.LinAlgError:   # an instance with a zero scale (collapsed: its normals are moot)
+        inv = np.linalg.pinv(lin)
+    inv_t = np.transpose(inv, (0, 2, 1))
     n = normals[None] @ inv_t                                     # (I, N, 3)
     n = n.reshape(-1, 3)
     return (n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)).astype(np.float32)
