@@ -328,3 +328,21 @@ def test_zero_scales_on_a_mesh_with_normals_and_on_a_textured_dome_render(tmp_pa
         from warp_blur.output.files import read_exr
         img = read_exr(out)["RGBA"]
         assert np.isfinite(img).all() and img[..., 3].max() == 0.0 and img[..., :3].min() > 0.0   # the sky only
+
+
+
+def test_zero_scaled_points_render(tmp_path, scene_path):
+    """UsdGeomPoints scaled to zero (valid USD): their discs face the camera through the prim's
+    inverse transform, which is singular; they collapse and the frame renders."""
+    from pxr import Gf, Usd, UsdGeom, Vt
+    from scenes import emissive_quad_stage
+    path = emissive_quad_stage(scene_path(), with_light=True)
+    stage = Usd.Stage.Open(path)
+    dust = UsdGeom.Points.Define(stage, "/World/Dust")
+    dust.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(0, 0, 0), Gf.Vec3f(0.5, 0.2, 0)]))
+    dust.CreateWidthsAttr(Vt.FloatArray([0.3, 0.3]))
+    UsdGeom.Xformable(dust).AddScaleOp().Set(Gf.Vec3f(0.0, 0.0, 0.0))
+    stage.GetRootLayer().Save()
+    out = str(tmp_path / "dust.exr")
+    code, lines = _cli("render", path, "-o", out, "--frame", "1", "--resolution", "16x12", "--method", "analytic")
+    assert code == 0 and os.path.exists(out), lines

@@ -11,6 +11,8 @@ from typing import Callable
 import numpy as np
 from pxr import Usd, UsdGeom
 
+from ..core.affine import invert_affine
+
 
 #: sides of the polygon standing for a disc, and the radius scale that gives it the disc's area
 DISC_SIDES = 8
@@ -56,8 +58,11 @@ def facing_axes(prim: Usd.Prim, camera_prim: Usd.Prim, cache: UsdGeom.XformCache
     cache's time (a disc in their span faces the camera)."""
     cam_w = np.array(cache.GetLocalToWorldTransform(camera_prim), np.float64)
     prim_w = np.array(cache.GetLocalToWorldTransform(prim), np.float64)
-    with np.errstate(all="ignore"):
-        cam_in_prim = cam_w @ np.linalg.inv(prim_w)          # row vectors: camera local -> prim local
+    try:
+        with np.errstate(all="ignore"):
+            cam_in_prim = cam_w @ invert_affine(prim_w)      # row vectors: camera local -> prim local
+    except np.linalg.LinAlgError:   # a zero scale: the points collapse, any axes do
+        cam_in_prim = np.eye(4)
     axes = []
     for row in (0, 1):
         v = cam_in_prim[row, :3]
