@@ -11,9 +11,9 @@ from .errors import StageError
 
 def invert_affine(m: np.ndarray) -> np.ndarray:
     """(4, 4) float64 inverse of an affine row-vector matrix: np.linalg.inv where it succeeds with a
-    finite result that inverts m (every ordinary transform, unchanged), else the affine form (the linear part
-    inverted, the translation -t L⁻¹). Raises np.linalg.LinAlgError when the linear part itself is
-    singular (a zero scale)."""
+    finite result that inverts m (every ordinary transform, unchanged), else the affine form (the
+    linear part inverted, the translation -t L⁻¹). Raises np.linalg.LinAlgError when the linear
+    part itself is singular (a zero scale)."""
     m = np.asarray(m, np.float64)
     try:
         with np.errstate(all="ignore"):
