@@ -52,10 +52,13 @@ def presence_threshold(tri: int, sx: float, sy: float, u: float, shift: int) -> 
 
 @wp.func
 def cutout_opacity(geo: Geometry, tri: int, wb: float, wc: float) -> float:
-    """Opacity of triangle tri (which has a test: code not -1 or -2) at barycentrics
-    (1 - wb - wc, wb, wc): its constant, its corners' primvar or its texture there."""
+    """Opacity of triangle tri (which has a test: code not -1) at barycentrics (1 - wb - wc, wb,
+    wc): its constant, its corners' primvar or its texture there; -1 where it is hidden everywhere
+    (code -2), which opacity_hides then always hides."""
     c = geo.tri_cutout[tri]
     code = int(c[0])
+    if code == -2:
+        return -1.0
     opacity = c[2]
     if code == -4:
         a = geo.tri_alpha[tri]

@@ -21,7 +21,7 @@ from .dome import dome_ambient
 from .rays import entry_normal, entry_vertex
 from .light_table import light_value, light_vec
 from .shadow_lookup import light_taps_steady, light_visibility
-from .texture_lookup import binding_output, binding_sample, binding_value, same_sample
+from .texture_lookup import binding_output, binding_sample, binding_value
 
 PI = wp.constant(3.14159265358979)
 
@@ -267,7 +267,7 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
         b_rough = int(sh.materials[m, 14])
         b_metal = int(sh.materials[m, 15])
         metallic = sh.materials[m, 19]
-        if b_rough >= 0 and b_metal >= 0 and same_sample(sh.tex, b_rough, b_metal):
+        if sh.materials[m, 23] > 0.5:
             # one texture read for both (a metallic-roughness texture): the same sample, two channels
             c = binding_sample(sh.tex, b_rough, uv, lod)
             roughness = wp.clamp(binding_output(sh.tex, b_rough, c)[0], 0.02, 1.0)

@@ -129,15 +129,3 @@ def binding_value(tx: Textures, b: int, uv: wp.vec2, lod_base: float) -> wp.vec3
     the one channel in x, y, z."""
     return binding_output(tx, b, binding_sample(tx, b, uv, lod_base))
 
-
-@wp.func
-def same_sample(tx: Textures, a: int, b: int) -> bool:
-    """True when bindings a and b read the same texture the same way (UDIM flag, transform, level
-    bias): their samples at any point are equal, only scale, bias and channel may differ (glTF's
-    metallic-roughness texture, read as roughness from g and metallic from b)."""
-    if tx.bindings[a, 0] != tx.bindings[b, 0]:
-        return False
-    for col in range(10, 18):
-        if tx.bindings[a, col] != tx.bindings[b, col]:
-            return False
-    return True

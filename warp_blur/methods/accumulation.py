@@ -24,7 +24,7 @@ import warp as wp
 
 from ..core.parallel import run_prepared
 from ..kernels.raster import INSTANT_CACHE_SLOTS
-from ..raster.binning import SAMPLE_MARGIN_PX, TILE_SIZE, entry_pixel_bounds
+from ..raster.binning import SAMPLE_MARGIN_PX, TILE_SIZE, entry_pixel_bounds, tile_mask_pixels
 from .frame import FrameContext
 
 #: tests switch this off to compare against rendering every pixel at every instant
@@ -120,7 +120,6 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
         return None
     mark(first.positions, np.nonzero(~still & visible(first))[0])
     tile_moving = marks.cumsum(axis=0).cumsum(axis=1)[:tiles_y, :tiles_x] > 0
-    pixel_moving = np.repeat(np.repeat(tile_moving, TILE_SIZE, axis=0), TILE_SIZE, axis=1)[:proj.height, :proj.width]
     # still triangles that can show in a moving tile (their box is the same at every instant)
     integral = np.zeros((tiles_y + 1, tiles_x + 1), np.int64)
     integral[1:, 1:] = tile_moving.cumsum(axis=0).cumsum(axis=1)
@@ -130,8 +129,8 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
     needed = ~still
     needed[kept[touched]] = True
     nothing_moves = lights_still and camera_still and still_v.all() and same_vis.all()
-    return MovingTiles(np.nonzero(pixel_moving.ravel())[0], bool(steady), needed, ~still, bool(lights_still),
-                       bool(nothing_moves))
+    return MovingTiles(tile_mask_pixels(tile_moving, TILE_SIZE, proj.width, proj.height), bool(steady), needed,
+                       ~still, bool(lights_still), bool(nothing_moves))
 
 
 def tile_rects(ctx: FrameContext, positions: np.ndarray, tris: np.ndarray, with_kept: bool = False):
@@ -159,6 +158,7 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
     us = instants(n)
     plan = moving_tile_pixels(ctx, us) if (STATIC_TILES and n > 1) else None
     split = False
+    one_pass = False
     if plan is not None:
         # recorded hits: a triangle index and a vec4 per still pixel and sub-sample (still tiles
         # reshaded per instant), and per moving-tile pixel and sub-sample (with its radiance when
@@ -179,7 +179,7 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
     # still surfaces under still lights whose shadows move: the maps' varying-texel flags tell
     # which of their pixels never change (built only then: they cost tens of ms of NumPy)
     ctx.instant_flags = plan is not None and STEADY_PIXELS and plan.lights_still and not plan.steady
-    run_prepared(_passes(ctx, us, plan, split, rgba, recorded))
+    run_prepared(_passes(ctx, us, plan, split, split and one_pass, rgba, recorded))
     done = [h.done for h in recorded if h is not None and h.done is not None]
     if done:   # the still pixels found to look the same at every instant, shaded once
         ctx.counters["accumulation_steady_pixels"] = float(done[0].numpy().mean())
@@ -191,13 +191,14 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
     return rgba.numpy()
 
 
-def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None, split: bool,
+def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None, split: bool, one_pass: bool,
             rgba: wp.array, recorded: list) -> Iterator[Callable[[], None]]:
     """The frame's passes in order, each prepared when asked for (frame.prepare_sharp_pass): with
     a plan, still tiles once (steady) or found once and reshaded per instant, and the moving
     tiles at every instant (with split, the still triangles there found once, and only the
     changing ones rasterised per instant); without one, every pixel at every instant. The still
-    tiles' recorded hits are appended to `recorded`."""
+    tiles' recorded hits are appended to `recorded`. With one_pass (split, nothing moves, steady
+    shading) the moving tiles' instants are one pass after the record pass."""
     n = len(us)
     if plan is None:
         for snap in _snapshots(ctx, us):
@@ -228,7 +229,7 @@ def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None, split: 
                 keep = 1 if plan.steady else (2 if STEADY_PIXELS and plan.lights_still else 0)
                 run, behind = ctx.prepare_record_pass(snap, plan.pixels, plan.needed & ~plan.changing, keep)
                 yield run
-            if INSTANTS_IN_ONE_PASS and plan.steady and plan.nothing_moves:
+            if one_pass:
                 # only presence differs between the instants: every instant in one pass, each
                 # surface a sub-sample shows shaded once
                 yield ctx.prepare_over_recorded_pass(snap, behind, plan.changing, 1.0 / n, rgba, instants=us)

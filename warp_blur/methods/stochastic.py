@@ -112,14 +112,12 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
                                          entry_vertex(geo, e, vi[2], 0.0), vi)
                 if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
                     tested = has_cutout(geo, tri)
-                    hidden_everywhere = tested and int(geo.tri_cutout[tri][0]) == -2
                     opacity = float(1.0)
                     if tested:
                         opacity = cutout_opacity(geo, tri, hit[2], hit[3])
                     for j in range(j0, j1 + 1):
                         u = times[tid, j]
-                        if hit[1] < best_z[tid, j] and not hidden_everywhere \
-                                and not (tested and opacity_hides(geo, tri, opacity, u, x, y)):
+                        if hit[1] < best_z[tid, j] and not (tested and opacity_hides(geo, tri, opacity, u, x, y)):
                             best_z[tid, j] = hit[1]
                             best_e[tid, j] = e
             else:

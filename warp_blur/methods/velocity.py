@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from ..raster.binning import tile_mask_pixels
 from ..raster.device_data import make_bins, make_geometry
 from .frame import FrameContext
 from ..core.parallel import launch_pixels
@@ -208,9 +209,7 @@ def presence_pixels(bins, entry_fractional: np.ndarray, tile_size: int, width: i
     tile_of_pair = np.repeat(np.arange(len(counts)), counts)
     flagged = np.zeros(len(counts), bool)
     flagged[tile_of_pair[entry_fractional[bins.tile_entries]]] = True
-    tiles = flagged.reshape(bins.tiles_y, bins.tiles_x)
-    mask = np.repeat(np.repeat(tiles, tile_size, axis=0), tile_size, axis=1)[:height, :width]
-    return np.nonzero(mask.ravel())[0].astype(np.int32)
+    return tile_mask_pixels(flagged.reshape(bins.tiles_y, bins.tiles_x), tile_size, width, height).astype(np.int32)
 
 
 def presence_passes(ctx: FrameContext, view, geo, sh, bins, u: float, first_pass: wp.array,

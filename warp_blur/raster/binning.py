@@ -157,6 +157,13 @@ def band_misses_tiles(bands: np.ndarray, tx: np.ndarray, ty: np.ndarray, tile_si
     return (centre + reach < bands[:, 2]) | (centre - reach > bands[:, 3])
 
 
+def tile_mask_pixels(tiles: np.ndarray, tile_size: int, width: int, height: int) -> np.ndarray:
+    """Flat pixel indices (ascending, int64) of the screen tiles set in `tiles` (tiles_y, tiles_x)
+    bool, in an image of width × height."""
+    mask = np.repeat(np.repeat(tiles, tile_size, axis=0), tile_size, axis=1)[:height, :width]
+    return np.nonzero(mask.ravel())[0]
+
+
 def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size: int = TILE_SIZE,
                 order_key: np.ndarray | None = None, bands: np.ndarray | None = None) -> TileBins:
     """Tile lists from entry pixel boxes (count, prefix sum, fill — on the host with NumPy). Each

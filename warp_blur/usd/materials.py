@@ -6,8 +6,9 @@ use_corner_color (1 = diffuse comes from a colour primvar at the triangle's corn
 or the one a UsdPrimvarReader names), opacity; then the texture bindings of diffuse, emissive,
 roughness, metallic and opacity (-1 none; see textures.py), the metallic-workflow flag, the
 dielectric F0, metallic, opacityThreshold, a flag that the kernel must evaluate bindings and
-the metallic mix per hit (then diffuse holds the raw diffuseColor), and the binding of the
-tangent-space `normal` map (-1 none).
+the metallic mix per hit (then diffuse holds the raw diffuseColor), the binding of the
+tangent-space `normal` map (-1 none), and a flag that roughness and metallic share one texture
+sample (TextureSet.same_sample: glTF's metallic-roughness texture).
 The specular F0 follows UsdPreviewSurface: specularColor in the specular workflow, else
 lerp(((ior-1)/(ior+1))^2, diffuseColor, metallic) with the diffuse scaled by (1 - metallic).
 Inputs connected to a UsdUVTexture (coordinates from a UsdPrimvarReader_float2) or, for the
@@ -34,6 +35,7 @@ COL_METALLIC = 19
 COL_OPACITY_THRESHOLD = 20
 COL_TEXTURED = 21          # 1: the kernel evaluates bindings and the metallic mix per hit
 COL_NORMAL_BINDING = 22    # texture binding of `normal` (tangent-space normal map), -1 none
+COL_SHARED_RM_SAMPLE = 23  # 1: roughness and metallic read one texture the same way (one sample)
 _BOUND_INPUTS = ("diffuseColor", "emissiveColor", "roughness", "metallic", "opacity", "normal")
 #: USD's own UsdPreviewSurface fallbacks.
 FALLBACKS = {
@@ -283,6 +285,8 @@ def preview_surface_row(material: UsdShade.Material, frame: float,
     row[COL_METALLIC] = metallic
     row[COL_OPACITY_THRESHOLD] = threshold
     row[COL_TEXTURED] = 1.0 if textured else 0.0
+    row[COL_SHARED_RM_SAMPLE] = 1.0 if textures.same_sample(src["roughness"].binding,
+                                                            src["metallic"].binding) else 0.0
     st = next((s.st for s in src.values() if s.binding >= 0 and s.st), None)
     return row, MaterialReads(st=st, color=src["diffuseColor"].primvar, opacity=src["opacity"].primvar)
 

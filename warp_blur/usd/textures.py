@@ -208,6 +208,15 @@ class TextureSet:
             self._append(chains.get(tile, blank), "clamp", "clamp", source)
         return base
 
+    def same_sample(self, a: int, b: int) -> bool:
+        """True when bindings a and b (-1: none) read the same texture the same way (UDIM flag,
+        coordinate transform, level bias): their samples are equal everywhere, only scale, bias
+        and channel may differ."""
+        if a < 0 or b < 0:
+            return False
+        ra, rb = self.bindings[a], self.bindings[b]
+        return ra[0] == rb[0] and ra[10:18] == rb[10:18]
+
     def add_binding(self, texture: int, channel: str, scale, bias, udim: bool = False,
                     st_transform=IDENTITY_ST) -> int:
         """A binding row; st_transform (m00, m01, m10, m11, tx, ty) maps the surface's texture

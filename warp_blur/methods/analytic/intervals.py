@@ -97,7 +97,6 @@ def emit_visible(geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, sx: f
     # a still entry shows the same point in every slot: its hit and opacity are found once, and
     # only its presence is tested per slot (a fractional one's translucency)
     still = geo.entry_k0[e] == geo.entry_k1[e]
-    hidden_everywhere = int(geo.tri_cutout[tri][0]) == -2
     opacity = float(0.0)
     if still:
         hit_still = plane_hit(o, d, m.a0, m.b0, m.c0)
@@ -112,7 +111,7 @@ def emit_visible(geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp.vec3, sx: f
             s_lo = wp.max(s_a, (lo - m.u0) / du)
             hides = False
             if still:
-                hides = hidden_everywhere or opacity_hides(geo, tri, opacity, m.u0 + s_c * du, sx, sy)
+                hides = opacity_hides(geo, tri, opacity, m.u0 + s_c * du, sx, sy)
             else:
                 hit = plane_hit(o, d, m.a0 + s_c * (m.a1 - m.a0), m.b0 + s_c * (m.b1 - m.b0),
                                 m.c0 + s_c * (m.c1 - m.c0))
