@@ -20,6 +20,7 @@ from .kernel_types import Geometry, Shading, View
 from .dome import dome_ambient
 from .rays import entry_normal, entry_vertex
 from .light_table import light_value, light_vec
+from .shadow_free import cell_of
 from .shadow_lookup import light_taps_steady, light_visibility
 from .texture_lookup import binding_output, binding_sample, binding_value
 
@@ -62,10 +63,10 @@ def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, diffuse: wp.vec3, f0: wp.vec3, roug
 # copied per call and light)
 @wp.func(inline=True)
 def direct_light(sh: Shading, j: int, u: float, du: float, p: wp.vec3, vel: wp.vec3, n: wp.vec3, v: wp.vec3,
-                 diffuse: wp.vec3, f0: wp.vec3, roughness: float) -> wp.vec3:
+                 diffuse: wp.vec3, f0: wp.vec3, roughness: float, free: int) -> wp.vec3:
     """Reflected radiance from light j at camera-space point p (moving with velocity vel, units
     per shutter) with normal n, view vector v, at shutter time u (its shadow averaged over
-    [u - du/2, u + du/2])."""
+    [u - du/2, u + du/2]). free: the receiver's shadow-free bits (bit j: no lookup needed)."""
     kind = int(sh.lights[0, j, 0])
     radiance = light_vec(sh, j, 1, u)
     out = wp.vec3(0.0, 0.0, 0.0)
@@ -116,7 +117,7 @@ def direct_light(sh: Shading, j: int, u: float, du: float, p: wp.vec3, vel: wp.v
                 if cos_s > 0.0 and cos_l > 0.0:
                     e = cos_l * area / (16.0 * dist2)
                     out = out + wp.cw_mul(brdf(n, v, l, diffuse, f0, roughness), radiance) * (e * cos_s)
-    if max_component(out) > 0.0:
+    if max_component(out) > 0.0 and (j >= 31 or ((free >> j) & 1) == 0):
         out = out * light_visibility(sh, j, u, du, p, vel, n)
     return out
 
@@ -289,6 +290,12 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
     n = surface_normal(geo, sh, e, alpha, v, hit)
     out = emissive + wp.cw_mul(diffuse, dome_ambient(sh, n)) + wp.cw_mul(f0, sh.dome)
     vel = entry_point_velocity(geo, e, vi, hit)
+    # lights whose shadows cannot fall on this part of the entry (shadow_free.py): no lookup
+    free = int(0)
+    if sh.shadow_free.shape[0] >= (e + 1) * sh.num_lights:
+        cell = cell_of(hit[2], hit[3])
+        for j in range(wp.min(sh.num_lights, 31)):
+            free = free | (((sh.shadow_free[e * sh.num_lights + j] >> cell) & 1) << j)
     for j in range(sh.num_lights):
-        out = out + direct_light(sh, j, u, du, p, vel, n, v, diffuse, f0, roughness)
+        out = out + direct_light(sh, j, u, du, p, vel, n, v, diffuse, f0, roughness, free)
     return out

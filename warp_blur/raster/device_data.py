@@ -174,6 +174,12 @@ _TEXEL_ATLASES: OrderedDict = OrderedDict()
 
 _NO_TEXTURES: dict = {}
 _NO_DOME_SH: dict = {}
+_NO_FLAGS: dict = {}
+
+
+def _no_flags(device: str) -> wp.array:
+    """A one-element zero flag array (no entry flagged), shared per device."""
+    return _NO_FLAGS.get(device) or _NO_FLAGS.setdefault(device, wp.zeros(1, dtype=int, device=device))
 _MATERIALS: dict = {}
 
 
@@ -275,6 +281,7 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
     s.shadow_normal_bias = float(options.normal_bias) if options is not None else 1.5
     s.shadow_pcf = int(options.pcf) if options is not None else 0
     s.shadow_nearest = 0
+    s.shadow_free = _no_flags(device)   # set per frame's entries by shadows/free_entries.py
     return s
 
 

@@ -277,6 +277,7 @@ def prepare_motion(ctx):
     (parallel.Background) from the moment the plan is known, beside the camera's own set-up and
     whatever the caller runs before it first calls shading(), which waits for them."""
     from ...raster.device_data import make_bins, make_geometry
+    from ...shadows.free_entries import with_shadow_free
     s = ctx.settings
     with ctx.timed("segments"):
         plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.resolved_segment_error_px,
@@ -296,19 +297,22 @@ def prepare_motion(ctx):
     tile_bins = ctx.bin_groups(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1, [static, ~static],
                                order_key=near)
     bins = tuple(make_bins(b, ctx.device) for b in tile_bins)
+    shading = with_shadow_free(shading, geo, len(plan.entry_tri), ctx.device, ctx.counters)
     return plan, geo, bins, shading, ctx.view(tile_bins[0])
 
 
-def start_shading(ctx, plan: MotionPlan) -> Callable[[], Shading]:
-    """The frame's Shading over the planned shutter, as a callable: made here when no light casts a
-    shadow or the render is to use one core, else built by a Background job (the maps read only
-    plan.sample, which nothing changes)."""
+def start_shading(ctx, plan: MotionPlan) -> Callable[[], tuple[Shading, object]]:
+    """The frame's Shading over the planned shutter and its maps' occupancy table (or None;
+    shadows/free_entries.py), as a callable: made here when no light casts a shadow or the render
+    is to use one core, else built by a Background job (the maps read only plan.sample, which
+    nothing changes)."""
     from ...raster.device_data import make_shading
+    from ...shadows.free_entries import occupancy_table
     s = ctx.settings
     options, textures, dome = ctx.shadow_options(), ctx.scene.materials.textures, ctx.dome_frame()
     _ = ctx.tables   # made here, not raced for by the helper and the camera's set-up
 
-    def build() -> Shading:
+    def build() -> tuple[Shading, object]:
         shadows = None
         maps = ctx.shadow_maps(plan.sample)
         if maps is not None:
@@ -318,10 +322,13 @@ def start_shading(ctx, plan: MotionPlan) -> Callable[[], Shading]:
         # lights that hold still are one knot: the same at every time, exactly (between equal knots
         # the linear read rounds differently at each time)
         lights = plan.lights[:1] if plan.lights_static else plan.lights
-        return make_shading(ctx.scene.material_table, lights, ctx.scene.dome, ctx.device, shadows, options,
-                            textures, dome)
+        sh = make_shading(ctx.scene.material_table, lights, ctx.scene.dome, ctx.device, shadows, options,
+                          textures, dome)
+        # where casters are in the maps, for the entries that no shadow reaches (still beside the
+        # camera's passes)
+        return sh, (occupancy_table(sh, ctx.device, s.threads) if shadows is not None else None)
     # nothing to build beside the camera's work, or one core asked for: no helper thread
     if not ctx.may_cast_shadows() or (s.threads or default_threads()) == 1:
-        sh = build()
-        return lambda: sh
+        built = build()
+        return lambda: built
     return Background(build, "shadows").result
