@@ -139,3 +139,9 @@ def test_skipping_lookups_changes_the_image_by_rounding_only(monkeypatch, scene,
     ref = wb.render(path, frame=frame, method=method, resolution=RES, aovs=(), **kw)
     assert "shadow_free_entries" not in ref.stats
     assert np.abs(got.rgba - ref.rgba).max() <= 1e-6 * max(1.0, float(np.abs(ref.rgba).max()))
+
+
+def test_frames_past_the_flag_budget_look_every_lookup_up(monkeypatch):
+    monkeypatch.setattr(free_entries, "MAX_FLAGS", 10)
+    got = wb.render(os.path.join(SCENES, "demo.usda"), frame=12.0, method="analytic", resolution=(32, 24), aovs=())
+    assert "shadow_free_entries" not in got.stats

@@ -21,6 +21,8 @@ from ..kernels.shadow_free import block_occupancy, entry_shadow_free
 BLOCK = 4
 #: tests switch this off to compare against looking every lookup up
 SKIP_SHADOW_FREE = True
+#: most flags (entries × lights, int32) a frame keeps; past it every lookup is made
+MAX_FLAGS = 1 << 23
 
 
 def occupancy_table(sh: Shading, device: str, threads: int | None) -> wp.array | None:
@@ -61,7 +63,7 @@ def flag_shadow_free(sh: Shading, occ: wp.array | None, geo: Geometry, num_entri
                      counters: dict | None = None) -> None:
     """Set sh.shadow_free for the num_entries entries of geo (bit j: light j's lookups skipped),
     from the maps' occupancy table occ (occupancy_table; None: nothing flagged)."""
-    if occ is None or num_entries == 0:
+    if occ is None or num_entries == 0 or num_entries * sh.num_lights > MAX_FLAGS:
         return
     bits = testable_lights(sh)
     if bits == 0:
