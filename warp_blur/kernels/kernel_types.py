@@ -100,7 +100,7 @@ class Shading:
     shadow_normal_bias: float  # receiver offset along its normal, in texels
     shadow_pcf: int            # PCF radius in texels (0 = bilinear 2x2)
     shadow_nearest: int        # 1: a lookup at time u reads the nearest map instant, not a blend of two
-    shadow_free: wp.array(dtype=int)  # (E,) bit j: no shadow of light j falls on entry e (shadow_free.py), or (1,) 0
+    shadow_free: wp.array(dtype=int)  # (E * NL,) [e NL + j] bit c: light j casts no shadow on cell c of entry e (shadow_free.py); (1,) 0: none
     tex: Textures
 
 

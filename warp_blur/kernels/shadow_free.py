@@ -31,9 +31,9 @@ ALL_CELLS = wp.constant((1 << 16) - 1)
 def block_occupancy(maps: wp.array(dtype=float), size: int, times: int, block: int, bands: int, first: int,
                     occupied: wp.array3d(dtype=int)):
     """occupied[slot, by, bx] = 1 where a texel of block (bx, by) (block × block texels) of face
-    slot holds anything but +inf (a caster's depth) at some map instant; left as it was (0)
-    elsewhere. One thread per band of `block` texel rows of a slot (flat index first + tid), which
-    reads its rows in memory order. maps: the (slots, S, S, B) maps, contiguous, flattened."""
+    slot holds anything but +inf (a caster's depth) at some map instant, else 0. One thread per
+    band of `block` texel rows of a slot (flat index first + tid), reading its rows in memory
+    order. maps: the (slots, S, S, B) maps, contiguous, flattened."""
     k = first + wp.tid()
     s = k // bands
     by = k % bands

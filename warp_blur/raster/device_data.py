@@ -175,12 +175,12 @@ _TEXEL_ATLASES: OrderedDict = OrderedDict()
 _NO_TEXTURES: dict = {}
 _NO_DOME_SH: dict = {}
 _NO_FLAGS: dict = {}
+_MATERIALS: dict = {}
 
 
 def _no_flags(device: str) -> wp.array:
     """A one-element zero flag array (no entry flagged), shared per device."""
     return _NO_FLAGS.get(device) or _NO_FLAGS.setdefault(device, wp.zeros(1, dtype=int, device=device))
-_MATERIALS: dict = {}
 
 
 def _materials_array(materials: np.ndarray, device: str) -> wp.array:

@@ -28,6 +28,8 @@ from ...core.log import warn_once
 from ...usd.scene import Scene
 
 if TYPE_CHECKING:
+    import warp as wp
+
     from ...kernels.kernel_types import Shading
 
 
@@ -301,7 +303,7 @@ def prepare_motion(ctx):
     return plan, geo, bins, shading, ctx.view(tile_bins[0])
 
 
-def start_shading(ctx, plan: MotionPlan) -> Callable[[], tuple[Shading, object]]:
+def start_shading(ctx, plan: MotionPlan) -> Callable[[], tuple[Shading, "wp.array | None"]]:
     """The frame's Shading over the planned shutter and its maps' occupancy table (or None;
     shadows/free_entries.py), as a callable: made here when no light casts a shadow or the render
     is to use one core, else built by a Background job (the maps read only plan.sample, which
@@ -312,7 +314,7 @@ def start_shading(ctx, plan: MotionPlan) -> Callable[[], tuple[Shading, object]]
     options, textures, dome = ctx.shadow_options(), ctx.scene.materials.textures, ctx.dome_frame()
     _ = ctx.tables   # made here, not raced for by the helper and the camera's set-up
 
-    def build() -> tuple[Shading, object]:
+    def build() -> tuple[Shading, "wp.array | None"]:
         shadows = None
         maps = ctx.shadow_maps(plan.sample)
         if maps is not None:
