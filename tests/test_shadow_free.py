@@ -68,19 +68,75 @@ def capture_flags(monkeypatch) -> list:
     seen = []
     original = free_entries.flag_shadow_free
 
-    def recording(sh, occ, geo, num_entries, device, counters=None):
-        original(sh, occ, geo, num_entries, device, counters)
-        seen.append((sh, geo, num_entries))
+    def recording(sh, occ, geo, num_entries, device, counters=None, sharp_at=None):
+        original(sh, occ, geo, num_entries, device, counters, sharp_at)
+        seen.append((sh, geo, num_entries, sharp_at))
     monkeypatch.setattr(free_entries, "flag_shadow_free", recording)
     return seen
 
 
-def looked_up(sh, geo, num_entries, want_flagged: bool, samples: int = 64, seed: int = 5):
+@wp.kernel(enable_backward=False)
+def sampled_visibility_sharp(geo: Geometry, sh: Shading, flags: wp.array(dtype=int), want_flagged: int, seed: int,
+                             samples: int, u: float, lowest: wp.array(dtype=float), count: wp.array(dtype=int)):
+    """sampled_visibility for a sharp instant's static entries at shutter time u: the points
+    looked up at u itself, moving with the vertices' velocities when the geometry has them."""
+    e = wp.tid()
+    nl = sh.num_lights
+    state = wp.rand_init(seed, e)
+    vi = geo.tri_vertices[geo.entry_tri[e]]
+    for _s in range(samples):
+        wb = wp.randf(state)
+        wc = wp.randf(state)
+        if wb + wc > 1.0:
+            wb = 1.0 - wb
+            wc = 1.0 - wc
+        cell = cell_of(wb, wc)
+        p = (1.0 - wb - wc) * entry_vertex(geo, e, vi[0], 0.0) + wb * entry_vertex(geo, e, vi[1], 0.0) \
+            + wc * entry_vertex(geo, e, vi[2], 0.0)
+        vel = entry_point_velocity(geo, e, vi, wp.vec4(0.0, 0.0, wb, wc))
+        n = wp.normalize(wp.vec3(wp.randn(state), wp.randn(state), wp.randn(state)))
+        for j in range(nl):
+            flagged = ((flags[e * nl + j] >> cell) & 1) != 0
+            if flagged == (want_flagged != 0):
+                v = light_visibility(sh, j, u, 0.0, p, vel, n)
+                wp.atomic_min(lowest, j, v)
+                wp.atomic_add(count, j, 1)
+
+
+def looked_up(sh, geo, num_entries, want_flagged: bool, samples: int = 64, seed: int = 5, sharp_at=None):
     lowest = wp.full(sh.num_lights, 2.0, dtype=float, device="cpu")
     count = wp.zeros(sh.num_lights, dtype=int, device="cpu")
-    wp.launch(sampled_visibility, dim=num_entries,
-              inputs=[geo, sh, sh.shadow_free, int(want_flagged), seed, samples, lowest, count], device="cpu")
+    if sharp_at is None:
+        wp.launch(sampled_visibility, dim=num_entries,
+                  inputs=[geo, sh, geo.shadow_free, int(want_flagged), seed, samples, lowest, count], device="cpu")
+    else:
+        wp.launch(sampled_visibility_sharp, dim=num_entries,
+                  inputs=[geo, sh, geo.shadow_free, int(want_flagged), seed, samples, float(sharp_at), lowest, count],
+                  device="cpu")
     return lowest.numpy(), count.numpy()
+
+
+@pytest.mark.parametrize("scene,frame", CASES)
+def test_flagged_parts_of_a_sharp_instant_are_lit_by_every_lookup(monkeypatch, scene, frame):
+    """Accumulation flags each instant's entries against the maps it reads (the two map instants
+    around it, its points moved with the vertices' velocities)."""
+    monkeypatch.setattr(free_entries, "BLOCK", 1)
+    seen = capture_flags(monkeypatch)
+    wb.render(os.path.join(SCENES, f"{scene}.usda"), frame=frame, method="accumulation", samples=16,
+              resolution=RES, aovs=())
+    assert seen and all(at is not None for *_, at in seen)
+    lit_seen = shadowed = 0
+    for sh, geo, num_entries, at in seen:
+        if geo.shadow_free.shape[0] != num_entries * sh.num_lights:
+            continue   # nothing flagged at this instant
+        lowest, count = looked_up(sh, geo, num_entries, want_flagged=True, samples=16, sharp_at=at)
+        for j in range(sh.num_lights):
+            if count[j]:
+                lit_seen += int(count[j])
+                assert lowest[j] >= 1.0 - 1e-5, f"light {j} at {at}: a flagged point looked up {lowest[j]}"
+        lowest, count = looked_up(sh, geo, num_entries, want_flagged=False, samples=16, sharp_at=at)
+        shadowed += int((lowest[count > 0] < 0.5).any())
+    assert lit_seen > 1000 and shadowed > 0
 
 
 @pytest.mark.parametrize("block", [1, free_entries.BLOCK])
@@ -91,8 +147,8 @@ def test_flagged_parts_of_entries_are_lit_by_every_lookup(monkeypatch, scene, fr
     seen = capture_flags(monkeypatch)
     wb.render(os.path.join(SCENES, f"{scene}.usda"), frame=frame, method="analytic", resolution=RES, aovs=())
     assert seen, "the frame's entries were never tested"
-    sh, geo, num_entries = seen[-1]
-    flags = sh.shadow_free.numpy().reshape(num_entries, sh.num_lights)
+    sh, geo, num_entries, _ = seen[-1]
+    flags = geo.shadow_free.numpy().reshape(num_entries, sh.num_lights)
     shadowing = [j for j in range(sh.num_lights) if sh.shadow_lights.numpy()[j, 0] >= 0]
     assert all(np.count_nonzero(flags[:, j]) > 0 for j in shadowing), "no entry flagged for a shadowing light"
     lowest, count = looked_up(sh, geo, num_entries, want_flagged=True)
@@ -128,11 +184,11 @@ def test_cells_cover_the_triangle_and_pick_the_cell_a_point_lies_in():
     assert len(set(got.tolist())) == CELLS * (CELLS + 1) // 2
 
 
-@pytest.mark.parametrize("method", ["analytic", "stochastic"])
+@pytest.mark.parametrize("method", ["analytic", "stochastic", "accumulation"])
 @pytest.mark.parametrize("scene,frame", CASES)
 def test_skipping_lookups_changes_the_image_by_rounding_only(monkeypatch, scene, frame, method):
     path = os.path.join(SCENES, f"{scene}.usda")
-    kw = {"samples": 8} if method == "stochastic" else {}
+    kw = {"samples": 8} if method != "analytic" else {}
     got = wb.render(path, frame=frame, method=method, resolution=RES, aovs=(), **kw)
     assert got.stats["shadow_free_entries"] > 0
     monkeypatch.setattr(free_entries, "SKIP_SHADOW_FREE", False)

@@ -64,6 +64,7 @@ class Geometry:
     presence_shift: int                     # added to fractional opacity's presence slot (cutout.py; 0 but in velocity passes)
     clip_bits: int                          # analytic time bits (0: exact): near/far crossings bisected to 1/16 of a slot
     tex: Textures                           # the frame's textures (for cutout opacity)
+    shadow_free: wp.array(dtype=int)        # (E * NL,) [e NL + j] bit c: light j's maps cast no shadow on cell c of entry e (shadow_free.py); (1,) 0: none
 
 
 @wp.struct
@@ -100,7 +101,6 @@ class Shading:
     shadow_normal_bias: float  # receiver offset along its normal, in texels
     shadow_pcf: int            # PCF radius in texels (0 = bilinear 2x2)
     shadow_nearest: int        # 1: a lookup at time u reads the nearest map instant, not a blend of two
-    shadow_free: wp.array(dtype=int)  # (E * NL,) [e NL + j] bit c: light j casts no shadow on cell c of entry e (shadow_free.py); (1,) 0: none
     tex: Textures
 
 

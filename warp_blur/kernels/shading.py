@@ -292,10 +292,10 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
     vel = entry_point_velocity(geo, e, vi, hit)
     # lights whose shadows cannot fall on this part of the entry (shadow_free.py): no lookup
     free = int(0)
-    if sh.shadow_free.shape[0] >= (e + 1) * sh.num_lights:
+    if geo.shadow_free.shape[0] >= (e + 1) * sh.num_lights:
         cell = cell_of(hit[2], hit[3])
         for j in range(wp.min(sh.num_lights, 31)):
-            free = free | (((sh.shadow_free[e * sh.num_lights + j] >> cell) & 1) << j)
+            free = free | (((geo.shadow_free[e * sh.num_lights + j] >> cell) & 1) << j)
     for j in range(sh.num_lights):
         out = out + direct_light(sh, j, u, du, p, vel, n, v, diffuse, f0, roughness, free)
     return out

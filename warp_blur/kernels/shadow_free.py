@@ -54,6 +54,25 @@ def block_occupancy(maps: wp.array(dtype=float), size: int, times: int, block: i
         occupied[s, by, bx] = seen
 
 
+@wp.kernel(enable_backward=False)
+def block_occupancy_strided(maps: wp.array4d(dtype=float), block: int, bands: int, first: int,
+                            occupied: wp.array3d(dtype=int)):
+    """block_occupancy for maps in any memory layout (a sharp instant's: each instant's image
+    whole), indexed [slot, y, x, instant]; one thread per band of `block` texel rows of a slot,
+    reading instant by instant."""
+    k = first + wp.tid()
+    s = k // bands
+    by = k % bands
+    size = maps.shape[1]
+    y0 = by * block
+    y1 = wp.min(y0 + block, size)
+    for b in range(maps.shape[3]):
+        for y in range(y0, y1):
+            for x in range(size):
+                if not (maps[s, y, x, b] == wp.inf):   # a depth, or a NaN: occupied
+                    occupied[s, by, x // block] = 1
+
+
 @wp.func
 def window_point(sh: Shading, f: int, pl: wp.vec3) -> wp.vec3:
     """(window x, window y, depth) of light-local point pl in face slot f, before any bias, as
@@ -181,32 +200,59 @@ def cell_corner(a: wp.vec3, b: wp.vec3, c: wp.vec3, i: int, k: int, n: int) -> w
 
 
 @wp.func
+def carried(geo: Geometry, e: int, v: int, u: float, sharp: int, u_now: float) -> wp.vec3:
+    """Vertex v of entry e where a lookup for map time u takes it: along its span's motion
+    (extrapolated), or for a sharp instant at u_now its position moved by its velocity (as
+    shading.entry_point_velocity gives a static entry's)."""
+    if sharp != 0 and geo.has_velocities != 0:
+        return geo.positions[geo.entry_k0[e], v] + (u - u_now) * geo.velocities[v]
+    return extrapolated(geo, e, v, u)
+
+
+@wp.func
 def light_test(geo: Geometry, sh: Shading, e: int, j: int, cell: int, occ: wp.array3d(dtype=int),
-               block: int) -> int:
-    """face_test over every map instant, light sample and face of light j, for entry e's points
-    in barycentric cell `cell` (cell_of; -1: the whole triangle): FREE when every lookup of light
-    j from them reads only empty texels, else the first failing test's answer."""
+               block: int, sharp: int, u_now: float) -> int:
+    """face_test for every map instant a lookup of light j may read, light sample and face, for
+    entry e's points in barycentric cell `cell` (cell_of; -1: the whole triangle): FREE when every
+    lookup of light j from them reads only empty texels, else the first failing test's answer.
+    sharp: the entries are a sharp instant's at shutter time u_now (accumulation), whose lookups
+    read the two map instants around u_now (or the light's one map, in its frame at u_now); else
+    every map instant, from points anywhere along the entry's span."""
     first = sh.shadow_lights[j, 0]
     num_samples = sh.shadow_lights[j, 1]
     num_faces = sh.shadow_lights[j, 2]
     vi = geo.tri_vertices[geo.entry_tri[e]]
     times = sh.shadow_times
-    if times == 1 and geo.entry_k0[e] != geo.entry_k1[e]:
+    moving = geo.entry_k0[e] != geo.entry_k1[e]
+    if moving and (times == 1 or sharp != 0):
         return OCCUPIED   # one map read at the lookup's own time: the entry anywhere along its span
-    for b in range(times):
+    first_b = int(0)
+    count = times
+    if sharp != 0 and times > 1:
+        # light_visibility_at's two instants around u_now (the second read only when blending)
+        x = wp.clamp(u_now, 0.0, 1.0) * float(times) - 0.5
+        first_b = wp.clamp(int(wp.floor(x)), 0, times - 1)
+        count = wp.min(first_b + 1, times - 1) - first_b + 1
+    for step in range(count):
+        b = first_b + step
         axes = wp.mat33()
         origin = wp.vec3()
         u = float(0.0)
         if times > 1:
             axes, origin = instant_frame(sh, j, b)
             u = (float(b) + 0.5) / float(times)
+        elif sharp != 0:
+            # the one map is read in the light's frame at the lookup's own time
+            u = u_now
+            axes = light_axes(sh, j, u)
+            origin = light_vec(sh, j, 4, u)
         else:
             # (the caller flags only lights that hold still when there is one map instant)
             axes = light_axes(sh, j, 0.0)
             origin = light_vec(sh, j, 4, 0.0)
-        pa = axes * (extrapolated(geo, e, vi[0], u) - origin)
-        pb = axes * (extrapolated(geo, e, vi[1], u) - origin)
-        pc = axes * (extrapolated(geo, e, vi[2], u) - origin)
+        pa = axes * (carried(geo, e, vi[0], u, sharp, u_now) - origin)
+        pb = axes * (carried(geo, e, vi[1], u, sharp, u_now) - origin)
+        pc = axes * (carried(geo, e, vi[2], u, sharp, u_now) - origin)
         qa = pa
         qb = pb
         qc = pc
@@ -243,23 +289,23 @@ def cell_of(wb: float, wc: float) -> int:
 
 @wp.kernel(enable_backward=False)
 def entry_shadow_free(geo: Geometry, sh: Shading, occ: wp.array3d(dtype=int), block: int, lights: int,
-                      out: wp.array(dtype=int)):
+                      sharp: int, u_now: float, out: wp.array(dtype=int)):
     """out[e * NL + j] (entry e = tid, NL lights): bit cell_of(...) set when no shadow of light j
     can fall on the points of entry e in that barycentric cell; lights: the bits of the lights
-    that may be tested. An entry occupied over a wide box is tested cell by cell. Entries that
-    carry vertex velocities (a sharp instant's static entries moved in other maps) are never
+    that may be tested; sharp, u_now: see light_test. An entry occupied over a wide box is tested
+    cell by cell. Outside a sharp instant, entries that carry vertex velocities are never
     flagged."""
     e = wp.tid()
     nl = sh.num_lights
     for j in range(nl):
         bits = int(0)
-        if geo.has_velocities == 0 and j < 31 and ((lights >> j) & 1) != 0:
-            t = light_test(geo, sh, e, j, -1, occ, block)
+        if (sharp != 0 or geo.has_velocities == 0) and j < 31 and ((lights >> j) & 1) != 0:
+            t = light_test(geo, sh, e, j, -1, occ, block, sharp, u_now)
             if t == FREE:
                 bits = ALL_CELLS
             elif t == OCCUPIED_WIDE:
                 for i in range(CELLS):
                     for k in range(CELLS - i):
-                        if light_test(geo, sh, e, j, i * CELLS + k, occ, block) == FREE:
+                        if light_test(geo, sh, e, j, i * CELLS + k, occ, block, sharp, u_now) == FREE:
                             bits = bits | (1 << (i * CELLS + k))
         out[e * nl + j] = bits

@@ -71,6 +71,7 @@ class FrameContext:
     neighbour: Snapshot | None = None   # an adjacent sharp instant's snapshot (accumulation sets it)
     _shading_last: tuple | None = None   # (time, Shading) of the last instant shaded
     _per_triangle_last: tuple | None = None   # (snapshot, Geometry) of the last per_triangle_geometry
+    _occupancy_last: tuple | None = None   # (shadow maps array, occupancy table) of the last instant's maps
     #: sharp instants' Shading carries the maps' varying-texel flags (render_sharp's record = 2 reads them)
     instant_flags: bool = False
     probe_snapshots: dict = field(default_factory=dict)   # shutter fraction -> Snapshot (static_frame's)
@@ -85,6 +86,7 @@ class FrameContext:
         self._instant_shadows = None
         self._shading_last = None
         self._per_triangle_last = None
+        self._occupancy_last = None
         self._velocities = None
         self.neighbour = None
         self.probe_snapshots = {}
@@ -343,6 +345,7 @@ class FrameContext:
         geo, bins = self.static_geometry([snapshot], 0, triangles, self.receiver_velocities(snapshot), cull)
         view, b = self.view(bins), make_bins(bins, self.device)
         u = self.snapshot_fraction(snapshot)   # static entries ignore it; shadow maps shared over time use it
+        self.skip_unshadowed(sh, geo, u)
         dev = self.device
         count = self.num_pixels if pixels is None else len(pixels)
         listed = wp.array(pixels.astype(np.int32), dtype=int, device=dev) if pixels is not None else \
@@ -362,6 +365,19 @@ class FrameContext:
                                                  first, mode, rgba, rec_e, rec_hit, done], dev,
                               self.settings.threads, bands_per_thread=FINE_BANDS)
         return run, (RecordedHits(view, listed, rec_e, rec_hit, done=done if whole else None) if record else None)
+
+    def skip_unshadowed(self, sh, geo: Geometry, u: float) -> None:
+        """Flag the entries of geo (a sharp instant at shutter time u) that no shadow of sh's maps
+        reaches, so their shading makes no lookup (shadows/free_entries.py). The maps' occupancy is
+        found once for the instants that share them; one launch each, no thread pool (passes are
+        prepared beside the pool's work)."""
+        from ..shadows.free_entries import flag_shadow_free, occupancy_table
+        if sh.shadow_maps.shape[1] <= 1:
+            return
+        last = self._occupancy_last
+        if last is None or last[0] is not sh.shadow_maps:
+            last = self._occupancy_last = (sh.shadow_maps, occupancy_table(sh, self.device, 1))
+        flag_shadow_free(sh, last[1], geo, geo.entry_tri.shape[0], self.device, self.counters, sharp_at=u)
 
     def per_triangle_geometry(self, snapshot: Snapshot) -> Geometry:
         """The instant's Geometry with every triangle an entry (entry = triangle index), static at

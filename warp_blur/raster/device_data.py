@@ -88,6 +88,7 @@ def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.nda
     g.cutout_slots = 256   # the analytic method sets its own (its time bits)
     g.presence_shift = 0
     g.clip_bits = 0   # the analytic method sets its time bits
+    g.shadow_free = _no_flags(dev)   # set against a Shading's maps by shadows/free_entries.py
     g.entry_tri = device_array(entry_tri.astype(np.int32), int, dev)
     g.entry_k0 = device_array(entry_k0.astype(np.int32), int, dev)
     g.entry_k1 = device_array(entry_k1.astype(np.int32), int, dev)
@@ -281,7 +282,6 @@ def make_shading(materials: np.ndarray, lights: np.ndarray, dome: np.ndarray, de
     s.shadow_normal_bias = float(options.normal_bias) if options is not None else 1.5
     s.shadow_pcf = int(options.pcf) if options is not None else 0
     s.shadow_nearest = 0
-    s.shadow_free = _no_flags(device)   # set per frame's entries by shadows/free_entries.py
     return s
 
 
