@@ -26,10 +26,11 @@ CASES = [("demo", 12.0), ("shadows", 6.0)]
 
 @wp.kernel(enable_backward=False)
 def sampled_visibility(geo: Geometry, sh: Shading, flags: wp.array(dtype=int), want_flagged: int, seed: int,
-                       samples: int, lowest: wp.array(dtype=float), count: wp.array(dtype=int)):
+                       samples: int, sharp_at: float, lowest: wp.array(dtype=float), count: wp.array(dtype=int)):
     """For entry tid: `samples` random points of it (random barycentrics, time in its span, unit
     normal, shadow span du), each looked up for every light whose flag for the point's cell is
-    (want_flagged 1) or is not (0) set; lowest[j] / count[j] gather the visibilities seen."""
+    (want_flagged 1) or is not (0) set; lowest[j] / count[j] gather the visibilities seen.
+    sharp_at >= 0: a sharp instant's static entries, looked up at that time with no span."""
     e = wp.tid()
     nl = sh.num_lights
     state = wp.rand_init(seed, e)
@@ -45,7 +46,9 @@ def sampled_visibility(geo: Geometry, sh: Shading, flags: wp.array(dtype=int), w
         cell = cell_of(wb, wc)
         u = wp.randf(state)
         alpha = float(0.0)
-        if k0 != k1:
+        if sharp_at >= 0.0:
+            u = sharp_at
+        elif k0 != k1:
             alpha = wp.randf(state)
             u = (float(k0) + alpha * float(k1 - k0)) / float(geo.num_segments)
         p = (1.0 - wb - wc) * entry_vertex(geo, e, vi[0], alpha) + wb * entry_vertex(geo, e, vi[1], alpha) \
@@ -53,7 +56,7 @@ def sampled_visibility(geo: Geometry, sh: Shading, flags: wp.array(dtype=int), w
         vel = entry_point_velocity(geo, e, vi, wp.vec4(0.0, 0.0, wb, wc))
         n = wp.normalize(wp.vec3(wp.randn(state), wp.randn(state), wp.randn(state)))
         du = float(0.0)
-        if wp.randf(state) < 0.5:
+        if sharp_at < 0.0 and wp.randf(state) < 0.5:
             du = 0.4 * wp.randf(state)
         for j in range(nl):
             flagged = ((flags[e * nl + j] >> cell) & 1) != 0
@@ -75,44 +78,12 @@ def capture_flags(monkeypatch) -> list:
     return seen
 
 
-@wp.kernel(enable_backward=False)
-def sampled_visibility_sharp(geo: Geometry, sh: Shading, flags: wp.array(dtype=int), want_flagged: int, seed: int,
-                             samples: int, u: float, lowest: wp.array(dtype=float), count: wp.array(dtype=int)):
-    """sampled_visibility for a sharp instant's static entries at shutter time u: the points
-    looked up at u itself, moving with the vertices' velocities when the geometry has them."""
-    e = wp.tid()
-    nl = sh.num_lights
-    state = wp.rand_init(seed, e)
-    vi = geo.tri_vertices[geo.entry_tri[e]]
-    for _s in range(samples):
-        wb = wp.randf(state)
-        wc = wp.randf(state)
-        if wb + wc > 1.0:
-            wb = 1.0 - wb
-            wc = 1.0 - wc
-        cell = cell_of(wb, wc)
-        p = (1.0 - wb - wc) * entry_vertex(geo, e, vi[0], 0.0) + wb * entry_vertex(geo, e, vi[1], 0.0) \
-            + wc * entry_vertex(geo, e, vi[2], 0.0)
-        vel = entry_point_velocity(geo, e, vi, wp.vec4(0.0, 0.0, wb, wc))
-        n = wp.normalize(wp.vec3(wp.randn(state), wp.randn(state), wp.randn(state)))
-        for j in range(nl):
-            flagged = ((flags[e * nl + j] >> cell) & 1) != 0
-            if flagged == (want_flagged != 0):
-                v = light_visibility(sh, j, u, 0.0, p, vel, n)
-                wp.atomic_min(lowest, j, v)
-                wp.atomic_add(count, j, 1)
-
-
 def looked_up(sh, geo, num_entries, want_flagged: bool, samples: int = 64, seed: int = 5, sharp_at=None):
     lowest = wp.full(sh.num_lights, 2.0, dtype=float, device="cpu")
     count = wp.zeros(sh.num_lights, dtype=int, device="cpu")
-    if sharp_at is None:
-        wp.launch(sampled_visibility, dim=num_entries,
-                  inputs=[geo, sh, geo.shadow_free, int(want_flagged), seed, samples, lowest, count], device="cpu")
-    else:
-        wp.launch(sampled_visibility_sharp, dim=num_entries,
-                  inputs=[geo, sh, geo.shadow_free, int(want_flagged), seed, samples, float(sharp_at), lowest, count],
-                  device="cpu")
+    at = -1.0 if sharp_at is None else float(sharp_at)
+    wp.launch(sampled_visibility, dim=num_entries,
+              inputs=[geo, sh, geo.shadow_free, int(want_flagged), seed, samples, at, lowest, count], device="cpu")
     return lowest.numpy(), count.numpy()
 
 
