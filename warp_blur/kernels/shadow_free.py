@@ -28,47 +28,22 @@ ALL_CELLS = wp.constant((1 << 16) - 1)
 
 
 @wp.kernel(enable_backward=False)
-def block_occupancy(maps: wp.array(dtype=float), size: int, times: int, block: int, bands: int, first: int,
+def block_occupancy(maps: wp.array4d(dtype=float), block: int, bands: int, first: int,
                     occupied: wp.array3d(dtype=int)):
     """occupied[slot, by, bx] = 1 where a texel of block (bx, by) (block × block texels) of face
-    slot holds anything but +inf (a caster's depth) at some map instant, else 0. One thread per
-    band of `block` texel rows of a slot (flat index first + tid), reading its rows in memory
-    order. maps: the (slots, S, S, B) maps, contiguous, flattened."""
-    k = first + wp.tid()
-    s = k // bands
-    by = k % bands
-    y0 = by * block
-    y1 = wp.min(y0 + block, size)
-    row = size * times
-    span = block * times   # one block's texels of a row: contiguous
-    for bx in range((size + block - 1) // block):
-        n = wp.min(span, row - bx * span)
-        seen = int(0)
-        for y in range(y0, y1):
-            p = (s * size + y) * row + bx * span
-            for i in range(n):
-                if not (maps[p + i] == wp.inf):   # a depth, or a NaN: occupied
-                    seen = 1
-            if seen != 0:
-                break
-        occupied[s, by, bx] = seen
-
-
-@wp.kernel(enable_backward=False)
-def block_occupancy_strided(maps: wp.array4d(dtype=float), block: int, bands: int, first: int,
-                            occupied: wp.array3d(dtype=int)):
-    """block_occupancy for maps in any memory layout (a sharp instant's: each instant's image
-    whole), indexed [slot, y, x, instant]; one thread per band of `block` texel rows of a slot,
-    reading instant by instant."""
+    slot holds anything but +inf (a caster's depth) at some map instant; left 0 elsewhere. One
+    thread per band of `block` texel rows of a slot (flat index first + tid), each texel's
+    instants read together. maps: (slots, S, S, B) indexed [slot, y, x, instant], in either
+    memory layout."""
     k = first + wp.tid()
     s = k // bands
     by = k % bands
     size = maps.shape[1]
     y0 = by * block
     y1 = wp.min(y0 + block, size)
-    for b in range(maps.shape[3]):
-        for y in range(y0, y1):
-            for x in range(size):
+    for y in range(y0, y1):
+        for x in range(size):
+            for b in range(maps.shape[3]):
                 if not (maps[s, y, x, b] == wp.inf):   # a depth, or a NaN: occupied
                     occupied[s, by, x // block] = 1
 

@@ -372,8 +372,6 @@ class FrameContext:
         found once for the instants that share them; one launch each, no thread pool (passes are
         prepared beside the pool's work)."""
         from ..shadows.free_entries import flag_shadow_free, occupancy_table
-        if sh.shadow_maps.shape[1] <= 1:
-            return
         last = self._occupancy_last
         if last is None or last[0] is not sh.shadow_maps:
             last = self._occupancy_last = (sh.shadow_maps, occupancy_table(sh, self.device, 1))

@@ -15,7 +15,7 @@ import warp as wp
 
 from ..core.parallel import launch_pixels
 from ..kernels.kernel_types import Geometry, Shading
-from ..kernels.shadow_free import block_occupancy, block_occupancy_strided, entry_shadow_free
+from ..kernels.shadow_free import block_occupancy, entry_shadow_free
 
 #: texels per side of an occupancy block (the test's resolution in the maps)
 BLOCK = 4
@@ -32,17 +32,10 @@ def occupancy_table(sh: Shading, device: str, threads: int | None) -> wp.array |
     maps = sh.shadow_maps
     if not SKIP_SHADOW_FREE or maps.shape[1] <= 1:
         return None
-    slots, size, times = maps.shape[0], maps.shape[1], maps.shape[3]
+    slots, size = maps.shape[0], maps.shape[1]
     g = -(-size // BLOCK)
     occupied = wp.zeros((slots, g, g), dtype=int, device=device)
-    if maps.is_contiguous:   # each texel's instants side by side: read in memory order
-        flat = wp.array(ptr=maps.ptr, shape=(maps.size,), dtype=float, device=maps.device)
-        flat.owner_array = maps   # (a view from a pointer does not keep its memory alive)
-        launch_pixels(block_occupancy, slots * g,
-                      lambda first, _n: [flat, size, times, BLOCK, g, first, occupied], device, threads)
-    else:
-        launch_pixels(block_occupancy_strided, slots * g,
-                      lambda first, _n: [maps, BLOCK, g, first, occupied], device, threads)
+    launch_pixels(block_occupancy, slots * g, lambda first, _n: [maps, BLOCK, g, first, occupied], device, threads)
     table = np.zeros((slots, g + 1, g + 1), np.int32)
     table[:, 1:, 1:] = occupied.numpy().cumsum(axis=1).cumsum(axis=2)
     return wp.array(table, dtype=int, device=device)
@@ -53,12 +46,13 @@ def testable_lights(sh: Shading, sharp: bool = False) -> int:
     (outside a sharp instant) only those that hold still (their lookups then read the light's
     frame at every time)."""
     lights = sh.shadow_lights.numpy()
-    table = sh.lights.numpy()   # (knots, NL, width)
+    still_needed = sh.shadow_times == 1 and not sharp
+    table = sh.lights.numpy() if still_needed else None   # (knots, NL, width)
     bits = 0
     for j in range(min(sh.num_lights, 31)):
         if lights[j, 0] < 0:
             continue
-        if sh.shadow_times == 1 and not sharp and not (table[:, j] == table[:1, j]).all():
+        if still_needed and not (table[:, j] == table[:1, j]).all():
             continue
         bits |= 1 << j
     return bits

@@ -328,7 +328,7 @@ def start_shading(ctx, plan: MotionPlan) -> Callable[[], tuple[Shading, "wp.arra
                           textures, dome)
         # where casters are in the maps, for the entries that no shadow reaches (still beside the
         # camera's passes)
-        return sh, (occupancy_table(sh, ctx.device, s.threads) if shadows is not None else None)
+        return sh, occupancy_table(sh, ctx.device, s.threads)
     # nothing to build beside the camera's work, or one core asked for: no helper thread
     if not ctx.may_cast_shadows() or (s.threads or default_threads()) == 1:
         built = build()
