@@ -6,7 +6,7 @@ import os
 
 import numpy as np
 import pytest
-from conftest import ACCEPTANCE
+from conftest import ACCEPTANCE, SCENES
 from scenes import emissive_quad_stage, lit_stage, moving_layers_stage, ramp_light_stage, shadow_stage, two_quads_stage
 
 import warp_blur as wb
@@ -281,6 +281,25 @@ def test_room_set_by_a_pilot_gives_the_same_image(scene_path, monkeypatch):
     assert 0.0 < piloted.stats["pixels_refilled"] < single.stats["pixels_with_motion"]
     assert piloted.stats["intervals"] == single.stats["intervals"]
     np.testing.assert_array_equal(piloted.rgba, single.rgba)
+
+
+def test_segment_junctions_take_the_radiance_already_shaded(monkeypatch):
+    """Demo's spinning cube moves in 8 segments and its ground (seen from a moving camera) in 2,
+    each a separate entry: an interval that meets the one shaded before it at a junction of the
+    same triangle takes that interval's radiance there instead of shading the same point at the
+    same time again. Only a shadow lookup's velocity (each segment's own) separates the two, so
+    the image must stay within 1e-4 of shading every end (a reuse of the wrong end moves pixels
+    by ~8e-3), and the count must say the ends were taken."""
+    import warp_blur.methods.analytic as analytic
+    kw = dict(frame=12.0, resolution=(128, 96), method="analytic", aovs=())
+    path = os.path.join(SCENES, "demo.usda")
+    reused = wb.render(path, **kw)
+    monkeypatch.setattr(analytic, "SEGMENT_JUNCTIONS", False)
+    every = wb.render(path, **kw)
+    assert every.stats["junction_ends_reused"] == 0
+    assert reused.stats["junction_ends_reused"] > 0.2 * reused.stats["intervals_shaded"]
+    assert reused.stats["intervals_shaded"] == every.stats["intervals_shaded"]
+    assert max_abs(reused.rgba, every.rgba) <= 1e-4
 
 
 def test_hidden_intervals_are_not_shaded(scene_path, monkeypatch):

@@ -47,6 +47,10 @@ CULL_AT_INSTANTS = False
 DIRECT_STATIC_PIXELS = True
 #: tests switch this off to compare against shading every interval of a still entry
 KEEP_STILL_RADIANCE = True
+#: an interval meeting the one shaded before it at a motion-segment junction of the same triangle
+#: takes its radiance there (resolve_bitmask); tests switch this off to compare against shading
+#: every interval's ends
+SEGMENT_JUNCTIONS = True
 # Time slots per shutter at which exact mode tests a moving cutout (with time bits, the bits'
 # own slots): a cutout's mask is point-sampled in time, its edges in space stay exact.
 EXACT_CUTOUT_SLOTS = 256
@@ -85,11 +89,12 @@ class _IntervalPass:
 
     def __init__(self, ctx: FrameContext, view, geo, shading, moving_bins, sub: wp.vec2, n_shade: int,
                  lights_static: int, static_hit: wp.array, listed: wp.array, rgba: wp.array, weight: float,
-                 fallbacks: BandCounter, truncated: BandCounter, shaded: BandCounter, budget: int) -> None:
+                 fallbacks: BandCounter, truncated: BandCounter, shaded: BandCounter, reused: BandCounter,
+                 budget: int) -> None:
         self.ctx, self.view, self.geo, self.shading, self.moving_bins = ctx, view, geo, shading, moving_bins
         self.sub, self.n_shade, self.lights_static = sub, n_shade, lights_static
         self.static_hit, self.listed, self.rgba, self.weight = static_hit, listed, rgba, weight
-        self.fallbacks, self.truncated, self.shaded = fallbacks, truncated, shaded
+        self.fallbacks, self.truncated, self.shaded, self.reused = fallbacks, truncated, shaded, reused
         self.total, self.max, self.peak_bytes, self.chunks, self.refilled = 0, 0, 0, 0, 0
         self.room = FIRST_FILL_ROOM
         self.budget = budget
@@ -148,10 +153,10 @@ class _IntervalPass:
             if bits > 0:
                 order = wp.empty(iv_t.shape[0], dtype=int, device=dev)
                 launch_pixels(resolve_bitmask, len(pixels_np),
-                              lambda first, n: [*shading, pixels, spans, iv_t, iv_z, iv_e, bits, keep_still, self.weight,
-                                                first, first, order,
+                              lambda first, n: [*shading, pixels, spans, iv_t, iv_z, iv_e, bits, keep_still,
+                                                int(SEGMENT_JUNCTIONS), self.weight, first, first, order,
                                                 wp.zeros((n, 3 * words), dtype=wp.uint32, device=dev),
-                                                self.shaded.band(), self.rgba],
+                                                self.shaded.band(), self.reused.band(), self.rgba],
                               dev, s.threads)
             else:
                 launch_pixels(resolve_exact, len(pixels_np),
@@ -212,7 +217,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     geo.clip_bits = bits
     num_px = ctx.num_pixels
     rgba = wp.zeros((num_px, 4), dtype=float, device=dev)
-    fallbacks, truncated, shaded = BandCounter(dev), BandCounter(dev), BandCounter(dev)
+    fallbacks, truncated, shaded, reused = BandCounter(dev), BandCounter(dev), BandCounter(dev), BandCounter(dev)
     # int32 interval indices: chunks stay below 2**30 intervals
     budget = min(int(s.memory_budget_mb * 2**20 // BYTES_PER_INTERVAL), 2**30)
     subs = ctx.sub_pixel_offsets()
@@ -232,7 +237,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
         pixels_np = np.nonzero(listed.numpy())[0].astype(np.int32)
         listed_total += len(pixels_np)
         interval_pass = _IntervalPass(ctx, view, geo, shading, moving_bins, sub_v, n_shade, lights_static, static_hit,
-                                      listed, rgba, weight, fallbacks, truncated, shaded, budget)
+                                      listed, rgba, weight, fallbacks, truncated, shaded, reused, budget)
         interval_pass.run(pixels_np, budget)
         passes.append(interval_pass)
         if direct and len(pixels_np) < num_px:
@@ -253,7 +258,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
         "interval_chunks": sum(p.chunks for p in passes), "pixels_with_motion": listed_total / samples_total,
         "pixels_refilled": sum(p.refilled for p in passes) / samples_total,
         "interval_room": max(p.room for p in passes),
-        "intervals_shaded": shaded.total(),
+        "intervals_shaded": shaded.total(), "junction_ends_reused": reused.total(),
         "near_far_fallbacks": fallbacks.total(), "exact_truncations": truncated.total(),
     })
     return rgba.numpy()

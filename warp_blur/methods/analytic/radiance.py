@@ -83,6 +83,16 @@ def radiance_plan(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: 
                   s_a: float, s_b: float, n_shade_max: int, lights_static: int):
     """How [s_a, s_b] is shaded: (sub-pieces n, linear, radiance at s_a, at the middle, at s_b);
     a constant interval has n = 1, linear = 0 and its radiance in all three."""
+    return radiance_plan_known(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, lights_static, 0,
+                               wp.vec3(0.0, 0.0, 0.0), wp.vec3(0.0, 0.0, 0.0))
+
+
+@wp.func
+def radiance_plan_known(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp.vec3, d: wp.vec3,
+                        s_a: float, s_b: float, n_shade_max: int, lights_static: int, known: int,
+                        known_a: wp.vec3, known_b: wp.vec3):
+    """radiance_plan, with the radiance at s_a (known bit 1) and at s_b (bit 2) of a linear
+    interval taken as given (an adjacent motion segment's interval shaded there: junctions)."""
     n = int(1)
     linear = int(0)
     la = wp.vec3(0.0, 0.0, 0.0)
@@ -94,9 +104,15 @@ def radiance_plan(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: 
         lb = la
     else:
         linear = 1
-        la = shade_at(view, geo, sh, e, m, o, d, s_a)
+        if (known & 1) != 0:
+            la = known_a
+        else:
+            la = shade_at(view, geo, sh, e, m, o, d, s_a)
         lm = shade_at(view, geo, sh, e, m, o, d, 0.5 * (s_a + s_b))
-        lb = shade_at(view, geo, sh, e, m, o, d, s_b)
+        if (known & 2) != 0:
+            lb = known_b
+        else:
+            lb = shade_at(view, geo, sh, e, m, o, d, s_b)
         dev = max_component(wp.abs(lm - 0.5 * (la + lb))) * 4.0
         n = wp.clamp(int(wp.ceil(wp.sqrt(dev / SHADE_TOLERANCE))), 1, n_shade_max)
     return n, linear, la, lm, lb

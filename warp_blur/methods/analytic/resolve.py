@@ -24,8 +24,8 @@ import warp as wp
 from ...kernels.dome import dome_along, dome_at, dome_over
 from ...kernels.kernel_types import Geometry, Shading, View
 from .moving import Moving, entry_moving, entry_time, sample_ray
-from .radiance import (boundary_radiance, lerp_in_time, radiance_at, radiance_plan, shade_at, span_radiance,
-                       static_receiver, sub_piece_time)
+from .radiance import (boundary_radiance, lerp_in_time, radiance_at, radiance_plan, radiance_plan_known, shade_at,
+                       span_radiance, static_receiver, sub_piece_time)
 
 WORD_ALL = wp.constant(wp.uint32(0xFFFFFFFF))
 # bits whose index has bit 0, 1, 2, 3, 4 set (module constants: inline literals above 2**31 make
@@ -147,12 +147,15 @@ def shadow_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: 
 @wp.func
 def visible_radiance(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, t: wp.vec2,
                      n_shade_max: int, lights_static: int, bits: int, masks: wp.array2d(dtype=wp.uint32), row: int,
-                     col: int) -> wp.vec3:
-    """The interval (entry e, shutter span t) shaded over its visible slots (the set bits of
-    masks[row, col:]): the sum over them of its radiance, / bits. Each linear sub-piece adds
-    (its visible slots) × its radiance at their mean time; sub-piece ends are shaded only for
-    sub-pieces with visible slots."""
+                     col: int, known: int, known_a: wp.vec3, known_b: wp.vec3):
+    """(colour, linear, radiance at the start, at the end): the interval (entry e, shutter span t)
+    shaded over its visible slots (the set bits of masks[row, col:]): the sum over them of its
+    radiance, / bits. Each linear sub-piece adds (its visible slots) × its radiance at their mean
+    time; sub-piece ends are shaded only for sub-pieces with visible slots. known, known_a,
+    known_b: radiance_plan_known's (ends already shaded); linear = 1 when both ends returned are
+    the interval's own radiance there."""
     m = entry_moving(geo, e)
+    zero = wp.vec3(0.0, 0.0, 0.0)
     still = n_shade_max > 1 and sh.shadow_times > 1 and static_receiver(geo, sh, e, lights_static) != 0
     short = n_shade_max > 1 and t[1] - t[0] <= short_span(n_shade_max)
     if still or short:
@@ -160,15 +163,16 @@ def visible_radiance(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3,
         sums = slot_sums(masks, row, col, slots[0], slots[1])
         if still and sums[0] < slots[1] - slots[0]:
             # still surface under moving shadows: averaged over the visible slots only, not the span
-            return shadow_pieces(view, geo, sh, e, m, o, d, t, bits, masks, row, col)
+            return shadow_pieces(view, geo, sh, e, m, o, d, t, bits, masks, row, col), 0, zero, zero
         if short:
             # short: one shading at the visible slots' mean time, shadows over their extent
             t_mean = (float(sums[1]) / float(sums[0]) + 0.5) / float(bits)
             share = float(sums[0]) / float(bits)
-            return radiance_at(view, geo, sh, e, m, o, d, entry_time(m, t_mean), share) * share
+            return radiance_at(view, geo, sh, e, m, o, d, entry_time(m, t_mean), share) * share, 0, zero, zero
     s_a = entry_time(m, t[0])
     s_b = entry_time(m, t[1])
-    n, linear, la, lm, lb = radiance_plan(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, lights_static)
+    n, linear, la, lm, lb = radiance_plan_known(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, lights_static,
+                                                known, known_a, known_b)
     color = wp.vec3(0.0, 0.0, 0.0)
     r0 = la
     have_r0 = int(1)
@@ -191,7 +195,21 @@ def visible_radiance(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3,
                 have_r0 = 1
         else:
             have_r0 = 0
-    return color
+    return color, linear, la, lb
+
+
+@wp.func
+def junction(geo: Geometry, e: int, t: wp.vec2, other: int, other_t: wp.vec2) -> int:
+    """1 when the interval (entry e, shutter span t) starts where interval `other` (span other_t)
+    ends, 2 when it ends where `other` starts, at a motion-segment junction of one triangle (the
+    two entries are consecutive segments of it: the same point at that time), else 0."""
+    if other < 0 or geo.entry_tri[other] != geo.entry_tri[e]:
+        return 0
+    if geo.entry_k1[other] == geo.entry_k0[e] and geo.entry_k0[e] != geo.entry_k1[e] and t[0] == other_t[1]:
+        return 1
+    if geo.entry_k0[other] == geo.entry_k1[e] and geo.entry_k0[e] != geo.entry_k1[e] and t[1] == other_t[0]:
+        return 2
+    return 0
 
 
 @wp.func
@@ -261,16 +279,21 @@ def run_color(view: View, geo: Geometry, sh: Shading, o: wp.vec3, d: wp.vec3,
 def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shade_max: int, lights_static: int,
                     pixels: wp.array(dtype=int), spans: wp.array(dtype=wp.vec2i),
                     iv_t: wp.array(dtype=wp.vec2), iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int), bits: int,
-                    keep_still: int, weight: float, first: int, band_first: int,
+                    keep_still: int, junctions: int, weight: float, first: int, band_first: int,
                     # outputs
                     order: wp.array(dtype=int), masks: wp.array2d(dtype=wp.uint32), shaded: wp.array(dtype=int),
-                    rgba: wp.array2d(dtype=float)):
+                    reused: wp.array(dtype=int), rgba: wp.array2d(dtype=float)):
     """rgba[pixels[k]] += weight × the resolved colour of listed sample k = first + tid (intervals
     spans[k][0]:spans[k][1] of the chunk's arrays, at sub-pixel position sub); masks is per-thread
     scratch (band rows, 3 × words: covered, stolen, visible); shaded[0] counts the intervals shaded.
     keep_still = 1 (lights that hold still, shadow maps of one instant): a still entry's radiance is
     the same over all its intervals (its every piece is shaded as one constant, at any time the
-    same), so it is shaded once a sample and each of its intervals adds it × its visible share."""
+    same), so it is shaded once a sample and each of its intervals adds it × its visible share.
+    junctions = 1: a linear interval that starts or ends where one of the last two linear intervals
+    shaded meets it at a motion-segment junction of the same triangle (junction()) takes that
+    interval's radiance there instead of shading the same point at the same time again; reused[0]
+    counts the ends taken (the ends of linear intervals only: a short or still one is shaded
+    otherwise)."""
     k = first + wp.tid()
     pix = pixels[k]
     row = k - band_first
@@ -285,6 +308,17 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
     covered = int(0)
     kept_e = int(-1)
     kept_r = wp.vec3(0.0, 0.0, 0.0)
+    # the last two linear intervals shaded (entry, shutter span, radiance at both ends): an
+    # interval that meets one at a motion-segment junction of the same triangle takes its
+    # radiance there instead of shading the same point again
+    j1_e = int(-1)
+    j1_t = wp.vec2(0.0, 0.0)
+    j1_a = wp.vec3(0.0, 0.0, 0.0)
+    j1_b = wp.vec3(0.0, 0.0, 0.0)
+    j2_e = int(-1)
+    j2_t = wp.vec2(0.0, 0.0)
+    j2_a = wp.vec3(0.0, 0.0, 0.0)
+    j2_b = wp.vec3(0.0, 0.0, 0.0)
     for ii in range(lo, hi):
         if covered < bits:
             i = order[ii]
@@ -342,8 +376,37 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
                         color = color + kept_r * (float(visible) / float(bits))
                     else:
                         shaded[0] = shaded[0] + 1
-                        color = color + visible_radiance(view, geo, sh, e, o, d, ti, n_shade_max, lights_static,
-                                                         bits, masks, row, 2 * words)
+                        known = int(0)
+                        known_a = wp.vec3(0.0, 0.0, 0.0)
+                        known_b = wp.vec3(0.0, 0.0, 0.0)
+                        if junctions != 0:
+                            j = junction(geo, e, ti, j1_e, j1_t)
+                            if j == 1:
+                                known = known | 1
+                                known_a = j1_b
+                            elif j == 2:
+                                known = known | 2
+                                known_b = j1_a
+                            j = junction(geo, e, ti, j2_e, j2_t)
+                            if j == 1 and (known & 1) == 0:
+                                known = known | 1
+                                known_a = j2_b
+                            elif j == 2 and (known & 2) == 0:
+                                known = known | 2
+                                known_b = j2_a
+                        c, linear, ra, rb = visible_radiance(view, geo, sh, e, o, d, ti, n_shade_max, lights_static,
+                                                             bits, masks, row, 2 * words, known, known_a, known_b)
+                        color = color + c
+                        if linear != 0:
+                            reused[0] = reused[0] + (known & 1) + known // 2
+                            j2_e = j1_e
+                            j2_t = j1_t
+                            j2_a = j1_a
+                            j2_b = j1_b
+                            j1_e = e
+                            j1_t = ti
+                            j1_a = ra
+                            j1_b = rb
     color = color + dome_uncovered(sh, d, masks, row, words, bits, covered)
     rgba[pix, 0] = rgba[pix, 0] + weight * color[0]
     rgba[pix, 1] = rgba[pix, 1] + weight * color[1]
