@@ -5,7 +5,10 @@ An interval [s_a, s_b] (entry times) of entry e is shaded
 - linearly (a reflecting surface, more than one shading sample): radiance at both ends and in the
   middle; a middle off the ends' mean by c splits the interval into n >= sqrt(4 c × 256) equal
   sub-pieces (capped at `samples`), each linear in time between its ends, which keeps a smoothly
-  curving radiance (off linear by c / n² per sub-piece) within 1/1024 of each sub-piece's line;
+  curving radiance (off linear by c / n² per sub-piece) within 1/1024 of each sub-piece's line.
+  An end where the interval meets an adjacent motion segment's interval of the same triangle
+  (the same point at the same time) takes the radiance that interval was shaded with there
+  (radiance_plan_known; the bitmask resolve keeps its last two linear intervals for this);
 - or as one constant (emissive-only material, a static surface under static lights, or one
   shading sample): the radiance in its middle, shadows averaged over its shutter span (a static
   receiver seen for all of it sees a moving shadow's whole time average; the resolve averages a
