@@ -172,3 +172,28 @@ def test_frames_past_the_flag_budget_look_every_lookup_up(monkeypatch):
     monkeypatch.setattr(free_entries, "MAX_FLAGS", 10)
     got = wb.render(os.path.join(SCENES, "demo.usda"), frame=12.0, method="analytic", resolution=(32, 24), aovs=())
     assert "shadow_free_entries" not in got.stats
+
+
+@pytest.mark.parametrize("scene,frame,mode", [("demo", 12.0, "auto"), ("shadows", 6.0, "auto"),
+                                              ("demo", 12.0, "warped")])
+def test_occupancy_marked_as_the_maps_are_written_equals_reading_them(monkeypatch, scene, frame, mode):
+    """The time-continuous methods' maps mark their occupied blocks as they are written (the
+    moving casters' splat, the still base filled in, warped maps put in place), so the occupancy
+    pass need not read every texel of every instant again: the tables must equal the ones found
+    by reading them."""
+    original = free_entries.occupancy_table
+    compared = []
+
+    def both(sh, device, threads, blocks=None):
+        marked = original(sh, device, threads, blocks)
+        read = original(sh, device, threads, None)
+        compared.append((blocks is not None, np.array_equal(marked.numpy(), read.numpy()),
+                         int(read.numpy()[:, -1, -1].sum())))
+        return marked
+    monkeypatch.setattr(free_entries, "occupancy_table", both)
+    wb.render(os.path.join(SCENES, f"{scene}.usda"), frame=frame, method="analytic", resolution=RES, aovs=(),
+              shadows=mode)
+    assert compared, "no occupancy was found"
+    for was_marked, equal, occupied_blocks in compared:
+        assert was_marked and occupied_blocks > 0
+        assert equal, "the blocks marked while the maps were written differ from the maps read"

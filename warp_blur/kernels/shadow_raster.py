@@ -120,9 +120,10 @@ def clipped_box(view: View, a: wp.vec3, b: wp.vec3, c: wp.vec3, margin: float) -
 
 @wp.kernel(enable_backward=False)
 def splat_shadow_depth(view: View, geo: Geometry, row_lo: int, row_hi: int, stride: int,
-                       cull: wp.array(dtype=float), num_tris: int,
+                       cull: wp.array(dtype=float), num_tris: int, block: int,
                        # in/out
-                       depth: wp.array(dtype=float), touched: wp.array(dtype=wp.uint8)):
+                       depth: wp.array(dtype=float), touched: wp.array(dtype=wp.uint8),
+                       occupied: wp.array(dtype=wp.uint8)):
     """depth[texel * stride + k] = min(that, entry's depth there) for entry tid (static, in face
     space, at instant k = its entry_k0) over the texel centres of its box within rows [row_lo,
     row_hi) (the pairs the texel walk of render_shadow_texels tests, with the same hit test): few,
@@ -130,7 +131,10 @@ def splat_shadow_depth(view: View, geo: Geometry, row_lo: int, row_hi: int, stri
     map; stride B renders B instants of a face at once, each texel's instants side by side (the
     layout lookups read); touched (when not empty) gets 1 at every texel an entry covers (over a
     face filled with the same base at every instant, texels never touched are the same at every
-    instant). The box is computed here (clipped_box), so a face costs the host no binning.
+    instant); occupied (when not empty, (ceil(S / block)²,)) gets 1 at every block × block texel
+    block where an entry writes a depth (the occupancy shadows/free_entries.py tests, found here
+    rather than by reading the maps again). The box is computed here (clipped_box), so a face
+    costs the host no binning.
     Launches for disjoint row bands may run in parallel. cull (when not empty), at instant k and
     triangle t [k * num_tris + t]: the sign of the triangle's closed instance where the light is
     outside it (0: keep), so a back face of it (facing with that sign) is left out: it never holds
@@ -194,6 +198,10 @@ def splat_shadow_depth(view: View, geo: Geometry, row_lo: int, row_hi: int, stri
                     wp.atomic_min(depth, (py * view.width + px) * stride + geo.entry_k0[e], hit[1])
                     if touched.shape[0] > 0:
                         touched[py * view.width + px] = wp.uint8(1)
+                    if occupied.shape[0] > 0:
+                        # (row bands share a block row at their edges: both write 1)
+                        bw = (view.width + block - 1) // block
+                        occupied[(py // block) * bw + px // block] = wp.uint8(1)
 
 
 @wp.kernel(enable_backward=False)

@@ -135,8 +135,8 @@ class FaceRasterizer:
         cull = self.cull_signs(q[None], [0], face)
         num_tris = len(self.tri_vertices)
         launch_row_bands(splat_shadow_depth, len(tris), self.size,
-                         lambda y0, y1: [view, geo, y0, y1, 1, cull, num_tris, depth, self.no_flags], self.device,
-                         threads)
+                         lambda y0, y1: [view, geo, y0, y1, 1, cull, num_tris, 1, depth, self.no_flags, self.no_flags],
+                         self.device, threads)
         return depth.numpy().reshape(self.size, self.size)
 
     def instants_geometry(self, transforms: list[tuple[np.ndarray, np.ndarray]], samples: list[Sample],
@@ -162,17 +162,20 @@ class FaceRasterizer:
         return make_geometry(self.tables, pos, None, tri, k, k), self.cull_signs(pos, instants, face)
 
     def splat_instants(self, face: Face, prepared: tuple[Geometry, wp.array], times: int, target: wp.array,
-                       touched: wp.array, threads: int | None) -> None:
+                       touched: wp.array, threads: int | None, occupied: wp.array | None = None,
+                       block: int = 1) -> None:
         """Splat instants_geometry's entries (geometry and cull signs) into target (S * S * times,):
         texel-major, each texel's `times` depths side by side, over what it holds (the nearer depth
-        wins); touched (S * S,) uint8 gets 1 where an entry covers a texel at some instant."""
+        wins); touched (S * S,) uint8 gets 1 where an entry covers a texel at some instant, and
+        occupied (ceil(S / block)²,) uint8, when given, 1 at the blocks where an entry writes."""
+        occupied = self.no_flags if occupied is None else occupied
         geo, cull = prepared
         view = make_view(face.projection(self.size), 1, None, TILE_SIZE)
         view.near = face.near
         num_tris = len(self.tri_vertices)
         launch_row_bands(splat_shadow_depth, geo.entry_tri.shape[0], self.size,
-                         lambda y0, y1: [view, geo, y0, y1, times, cull, num_tris, target, touched], self.device,
-                         threads)
+                         lambda y0, y1: [view, geo, y0, y1, times, cull, num_tris, block, target, touched,
+                                         occupied], self.device, threads)
 
     def gather(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, threads: int | None,
                subset: np.ndarray | None = None):

@@ -25,19 +25,26 @@ SKIP_SHADOW_FREE = True
 MAX_FLAGS = 1 << 23
 
 
-def occupancy_table(sh: Shading, device: str, threads: int | None) -> wp.array | None:
+def occupancy_table(sh: Shading, device: str, threads: int | None,
+                    blocks: np.ndarray | None = None) -> wp.array | None:
     """(slots, G+1, G+1) int32 summed-area tables of the BLOCK² texel blocks of each face slot
     that hold a caster's depth at some map instant (G = ceil(S / BLOCK)); None where the entries
-    are not to be tested (switched off, or no maps)."""
+    are not to be tested (switched off, or no maps). blocks: those blocks (slots, G, G), marked as
+    the maps were written (TexelMajorLayout.occupancy); without them the maps are read."""
     maps = sh.shadow_maps
     if not SKIP_SHADOW_FREE or maps.shape[1] <= 1:
         return None
     slots, size = maps.shape[0], maps.shape[1]
     g = -(-size // BLOCK)
-    occupied = wp.zeros((slots, g, g), dtype=int, device=device)
-    launch_pixels(block_occupancy, slots * g, lambda first, _n: [maps, BLOCK, g, first, occupied], device, threads)
+    if blocks is not None and blocks.shape != (slots, g, g):
+        blocks = None   # marked at another block size
+    if blocks is None:
+        occupied = wp.zeros((slots, g, g), dtype=int, device=device)
+        launch_pixels(block_occupancy, slots * g, lambda first, _n: [maps, BLOCK, g, first, occupied], device,
+                      threads)
+        blocks = occupied.numpy()
     table = np.zeros((slots, g + 1, g + 1), np.int32)
-    table[:, 1:, 1:] = occupied.numpy().cumsum(axis=1).cumsum(axis=2)
+    table[:, 1:, 1:] = blocks.astype(np.int32).cumsum(axis=1).cumsum(axis=2)
     return wp.array(table, dtype=int, device=device)
 
 

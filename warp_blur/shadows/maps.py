@@ -328,7 +328,8 @@ class ShadowMaps(KeyWarping):
             return
         target = laid.target(slot, self.device)
         touched = laid.flags(slot, self.device) if whole else self._raster.no_flags   # whole: flags from the splat
-        self._raster.splat_instants(lay.faces[fi], geo, laid.times, target, touched, threads)
+        self._raster.splat_instants(lay.faces[fi], geo, laid.times, target, touched, threads,
+                                    laid.occupied_slot(slot, self.device), laid.block)
         laid.done(slot, target, touched)
         if not whole:
             laid.flag(slot)

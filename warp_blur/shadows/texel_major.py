@@ -9,18 +9,24 @@ frame-sized instant-major copy, no transpose after the maps render.
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import warp as wp
 
 from ..core.reuse import reused_empty
 from ..kernels.shadow_raster import flag_varying_texels
+from . import free_entries
 
 
 class TexelMajorLayout:
     """Maps of B instants each (map first + (m B + b) F + f: light sample m, instant b, face f of a
     light whose maps start at `first`) held as slots (slots, S, S, B), slot first / B + m F + f,
     and flags (slots, S, S) uint8: 1 where a texel's depth may not be the same in all B instants
-    (layout.face_varying's, exact from flag(); from done(), conservatively where a triangle drew)."""
+    (layout.face_varying's, exact from flag(); from done(), conservatively where a triangle drew),
+    and occupancy (slots, G, G) uint8, G = ceil(S / block): 1 at the block² texel blocks that hold
+    a depth (not +inf) at some instant, marked as the maps are written (fill, put, and the splat
+    into occupied_slot), so free_entries.occupancy_table need not read the maps again."""
 
     def __init__(self, slots: int, size: int, times: int) -> None:
         self.times, self.size = times, size
@@ -34,6 +40,13 @@ class TexelMajorLayout:
         self.varying = self.varying_array.numpy()
         self._lights: list[tuple[int, int, int]] = []   # (first map, samples M, faces F)
         self._flagged = np.zeros(max(slots, 1), bool)
+        self.block = free_entries.BLOCK   # (read now: tests change it)
+        g = -(-size // self.block)
+        self.occupancy_array = wp.zeros((max(slots, 1), g, g), dtype=wp.uint8, device="cpu")
+        self.occupancy = self.occupancy_array.numpy()
+        #: False once a slot was splatted on another device (its blocks are then not marked here)
+        self.occupancy_complete = True
+        self._marking = threading.Lock()   # faces render on several threads
 
     def add_light(self, first: int, samples: int, faces: int) -> None:
         """Register a light whose M samples × B instants × F faces of maps start at `first`."""
@@ -52,6 +65,7 @@ class TexelMajorLayout:
         """Map idx (S, S) made on its own: written into its slot at its instant."""
         slot, b = self.locate(idx)
         self.slots[slot][..., b] = depth
+        self.mark(slot, depth)
 
     def fill(self, slot: int, instants: list[int], depth: np.ndarray | None) -> None:
         """Instants of a slot set to one map (S, S) (None: empty, inf)."""
@@ -64,6 +78,28 @@ class TexelMajorLayout:
                 np.copyto(block, depth[..., None])
         else:
             block[..., which] = np.inf if depth is None else depth[..., None]
+        if depth is not None:
+            self.mark(slot, depth)
+
+    def mark(self, slot: int, depth: np.ndarray) -> None:
+        """Mark the blocks of a map (S, S) written into the slot that hold anything but +inf."""
+        g, b = self.occupancy.shape[1], self.block
+        held = np.zeros((g * b, g * b), bool)
+        held[:self.size, :self.size] = ~(depth == np.inf)   # a depth, or a NaN: occupied
+        blocks = held.reshape(g, b, g, b).any(axis=(1, 3))
+        with self._marking:
+            self.occupancy[slot] |= blocks
+
+    def occupied_slot(self, slot: int, device: str) -> wp.array | None:
+        """The slot's occupancy blocks (G * G,) uint8 for splat_shadow_depth on `device`: the
+        CPU's own memory; None elsewhere (the occupancy is then found by reading the maps)."""
+        if not wp.get_device(device).is_cpu:
+            self.occupancy_complete = False
+            return None
+        n = self.occupancy.shape[1] * self.occupancy.shape[2]
+        view = wp.array(ptr=self.occupancy_array.ptr + slot * n, shape=(n,), dtype=wp.uint8, device="cpu")
+        view.owner_array = self.occupancy_array
+        return view
 
     def target(self, slot: int, device: str) -> wp.array:
         """The slot as a (S * S * B,) array on `device` to render into: on the CPU the slot's own

@@ -327,8 +327,10 @@ def start_shading(ctx, plan: MotionPlan) -> Callable[[], tuple[Shading, "wp.arra
         sh = make_shading(ctx.scene.material_table, lights, ctx.scene.dome, ctx.device, shadows, options,
                           textures, dome)
         # where casters are in the maps, for the entries that no shadow reaches (still beside the
-        # camera's passes)
-        return sh, occupancy_table(sh, ctx.device, s.threads)
+        # camera's passes), as marked while the maps were written where they were
+        laid = shadows.texel_major if shadows is not None else None
+        blocks = laid.occupancy if laid is not None and laid.occupancy_complete else None
+        return sh, occupancy_table(sh, ctx.device, s.threads, blocks)
     # nothing to build beside the camera's work, or one core asked for: no helper thread
     if not ctx.may_cast_shadows() or (s.threads or default_threads()) == 1:
         built = build()
