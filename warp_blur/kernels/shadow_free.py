@@ -5,8 +5,9 @@ them.
 Most of a lit frame's lookups come from receivers far from any shadow (a ground in the sun): each
 lookup is a serial chain of loads and a transform (~25-150 ns), and nothing in its result depends
 on the receiver there. A conservative test per entry and light decides it once a frame:
-`block_occupancy` marks the blocks of each face slot's texels that hold a depth at any instant
-(a summed-area table over them is built on the host), and `entry_shadow_free` projects the
+the blocks of each face slot's texels that hold a depth at any instant are marked (by the maps
+as they are written, shadows/texel_major.py, or else by `block_occupancy`; a summed-area table
+over them is built on the host), and `entry_shadow_free` projects the
 entry's triangle, carried to each map instant, into each face as shadow_lookup.face_coords
 projects a receiver point, widens its box by every offset a lookup adds (normal offset, bilinear
 taps, PCF, a texel for rounding) and asks the table whether any block in it is occupied. A

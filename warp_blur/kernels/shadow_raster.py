@@ -158,6 +158,7 @@ def splat_shadow_depth(view: View, geo: Geometry, row_lo: int, row_hi: int, stri
     box = clipped_box(view, a, b, c, 1.0)
     if not (box[0] <= box[2]):
         return
+    blocks_x = (view.width + block - 1) // block   # occupied's row length
     # clamped before the conversion to int (a vertex just in front of the eye projects far out)
     limit = float(4 * (view.width + view.height))
     x0 = wp.max(int(wp.ceil(wp.clamp(box[0], -limit, limit) - 0.5)), 0)
@@ -200,8 +201,7 @@ def splat_shadow_depth(view: View, geo: Geometry, row_lo: int, row_hi: int, stri
                         touched[py * view.width + px] = wp.uint8(1)
                     if occupied.shape[0] > 0:
                         # (row bands share a block row at their edges: both write 1)
-                        bw = (view.width + block - 1) // block
-                        occupied[(py // block) * bw + px // block] = wp.uint8(1)
+                        occupied[(py // block) * blocks_x + px // block] = wp.uint8(1)
 
 
 @wp.kernel(enable_backward=False)

@@ -213,6 +213,20 @@ def junction(geo: Geometry, e: int, t: wp.vec2, other: int, other_t: wp.vec2) ->
 
 
 @wp.func
+def take_junction(geo: Geometry, e: int, t: wp.vec2, other: int, other_t: wp.vec2, other_a: wp.vec3,
+                  other_b: wp.vec3, known: int, known_a: wp.vec3, known_b: wp.vec3):
+    """(known, known_a, known_b) with the end of the interval (entry e, span t) that interval
+    `other` (span other_t, radiance other_a at its start, other_b at its end) meets at a junction
+    taken from it, when that end is not known yet."""
+    j = junction(geo, e, t, other, other_t)
+    if j == 1 and (known & 1) == 0:
+        return known | 1, other_b, known_b
+    if j == 2 and (known & 2) == 0:
+        return known | 2, known_a, other_a
+    return known, known_a, known_b
+
+
+@wp.func
 def span_mean(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, t: wp.vec2, a: float, b: float,
               n_shade_max: int, lights_static: int) -> wp.vec3:
     """Mean over shutter times [a, b] (inside t) of the interval's (entry e, shutter span t)
@@ -380,20 +394,10 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
                         known_a = wp.vec3(0.0, 0.0, 0.0)
                         known_b = wp.vec3(0.0, 0.0, 0.0)
                         if junctions != 0:
-                            j = junction(geo, e, ti, j1_e, j1_t)
-                            if j == 1:
-                                known = known | 1
-                                known_a = j1_b
-                            elif j == 2:
-                                known = known | 2
-                                known_b = j1_a
-                            j = junction(geo, e, ti, j2_e, j2_t)
-                            if j == 1 and (known & 1) == 0:
-                                known = known | 1
-                                known_a = j2_b
-                            elif j == 2 and (known & 2) == 0:
-                                known = known | 2
-                                known_b = j2_a
+                            known, known_a, known_b = take_junction(geo, e, ti, j1_e, j1_t, j1_a, j1_b, known,
+                                                                    known_a, known_b)
+                            known, known_a, known_b = take_junction(geo, e, ti, j2_e, j2_t, j2_a, j2_b, known,
+                                                                    known_a, known_b)
                         c, linear, ra, rb = visible_radiance(view, geo, sh, e, o, d, ti, n_shade_max, lights_static,
                                                              bits, masks, row, 2 * words, known, known_a, known_b)
                         color = color + c
