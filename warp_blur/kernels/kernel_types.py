@@ -65,6 +65,7 @@ class Geometry:
     clip_bits: int                          # analytic time bits (0: exact): near/far crossings bisected to 1/16 of a slot
     tex: Textures                           # the frame's textures (for cutout opacity)
     shadow_free: wp.array(dtype=int)        # (E * NL,) [e NL + j] bit c: light j's maps cast no shadow on cell c of entry e (shadow_free.py); (1,) 0: none
+    entry_edges: wp.array2d(dtype=wp.vec3)  # (E, 11) a moving entry's edge quadratics for rays from the eye (analytic/coverage.py), or (1, 1) unused
 
 
 @wp.struct

@@ -25,7 +25,7 @@ from ..core.parallel import FINE_BANDS, launch_pixels
 from ..kernels.raster import add_pixel, box_rejects, pixel_tile
 from ..kernels.rays import entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin, static_entry_hit
 from ..kernels.shading import shade_entry_hit, shade_entry_hit_span
-from .analytic.coverage import DEGENERATE_TOL_F32, MAX_SPAN_PIECES, next_breakpoint, piece_covered, prism_edges
+from .analytic.coverage import MAX_SPAN_PIECES, entry_edges, next_breakpoint, piece_covered
 from .analytic.intervals import nearest_static
 from .analytic.segments import prepare_motion
 
@@ -35,7 +35,7 @@ KEEP_STILL_RADIANCE = True
 
 
 @wp.func
-def covered_time_bounds(geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> wp.vec2:
+def covered_time_bounds(view: View, geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> wp.vec2:
     """[first, last] shutter time at which moving entry e may cover the ray (empty: lo > hi)."""
     vi = geo.tri_vertices[geo.entry_tri[e]]
     k0 = geo.entry_k0[e]
@@ -46,7 +46,7 @@ def covered_time_bounds(geo: Geometry, e: int, o: wp.vec3, d: wp.vec3) -> wp.vec
     da = geo.positions[k1, vi[0]] - geo.positions[k0, vi[0]]
     db = geo.positions[k1, vi[1]] - geo.positions[k0, vi[1]]
     dc = geo.positions[k1, vi[2]] - geo.positions[k0, vi[2]]
-    ca, cb, cc, ra, rb, rc, dga, dgb, dgc = prism_edges(d, a0, da, b0, db, c0, dc, vi, DEGENERATE_TOL_F32)
+    ca, cb, cc, ra, rb, rc, dga, dgb, dgc = entry_edges(view, geo, e, d, a0, da, b0, db, c0, dc, vi)
     lo = float(2.0)
     hi = float(-1.0)
     s_prev = float(0.0)
@@ -95,7 +95,7 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
         still = geo.entry_k0[e] == geo.entry_k1[e]   # a still entry here has fractional opacity
         bounds = wp.vec2(0.0, 1.0)
         if not still:
-            bounds = covered_time_bounds(geo, e, o, d)
+            bounds = covered_time_bounds(view, geo, e, o, d)
         if bounds[0] <= bounds[1]:
             vi = geo.tri_vertices[geo.entry_tri[e]]
             u0 = float(geo.entry_k0[e]) / float(geo.num_segments)

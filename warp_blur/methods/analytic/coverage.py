@@ -16,6 +16,7 @@ from typing import Any
 
 import warp as wp
 
+from ...kernels.kernel_types import Geometry, View
 from ...kernels.rays import edge_cross, edge_owns
 
 #: coverage breakpoints per span: up to two roots for each of three edges, so at most 7 pieces
@@ -156,6 +157,104 @@ def prism_edges(d: Any, a0: Any, da: Any, b0: Any, db: Any, c0: Any, dc: Any, vi
     dgb = edge_degenerate(cb, d, b0, db, c0, dc, tol)
     dgc = edge_degenerate(cc, d, c0, dc, a0, da, tol)
     return ca, cb, cc, quad_roots(ca), quad_roots(cb), quad_roots(cc), dga, dgb, dgc
+
+
+#: vec3 rows of an entry's edge table (per edge: P, Q, R; then the edges' K and S; see edge_row)
+EDGE_TABLE_WIDTH = wp.constant(11)
+
+
+@wp.func
+def edge_row(a0: wp.vec3, da: wp.vec3, b0: wp.vec3, db: wp.vec3, ia: int, ib: int):
+    """(P, Q, R, K, S) of the edge from a(s) = a0 + s da to b(s) (eye-relative): for any ray d from
+    the eye, edge_coeffs = (d·P, d·Q, d·R) with the same float32 operations (the sign folded in,
+    which is exact), and edge_degenerate's scales: its bound is d·d × K, its scale |d| × S."""
+    sign = float(1.0)
+    p0 = a0
+    dp = da
+    q0 = b0
+    dq = db
+    if ia > ib:
+        sign = -1.0
+        p0 = b0
+        dp = db
+        q0 = a0
+        dq = da
+    e0 = q0 - p0
+    de = dq - dp
+    f0 = b0 - a0
+    df = db - da
+    k = 2.0 * (wp.dot(a0, a0) + wp.dot(da, da)) * 2.0 * (wp.dot(f0, f0) + wp.dot(df, df))
+    s = (wp.length(a0) + wp.length(da)) * (wp.length(f0) + wp.length(df))
+    return sign * wp.cross(p0, e0), sign * (wp.cross(p0, de) + wp.cross(dp, e0)), sign * wp.cross(dp, de), k, s
+
+
+@wp.kernel(enable_backward=False)
+def edge_table(positions: wp.array2d(dtype=wp.vec3), tri_vertices: wp.array(dtype=wp.vec3i),
+               entry_tri: wp.array(dtype=int), entry_k0: wp.array(dtype=int), entry_k1: wp.array(dtype=int),
+               # output
+               table: wp.array2d(dtype=wp.vec3)):
+    """table[e] (EDGE_TABLE_WIDTH vec3) for moving entry e: its three edges' edge_row, the
+    vertices eye-relative for a pinhole camera (the eye at the camera-space origin). What every
+    pixel ray's prism_edges would compute from the vertices, computed once an entry."""
+    e = wp.tid()
+    k0 = entry_k0[e]
+    k1 = entry_k1[e]
+    if k0 == k1:
+        return
+    vi = tri_vertices[entry_tri[e]]
+    a0 = positions[k0, vi[0]]
+    b0 = positions[k0, vi[1]]
+    c0 = positions[k0, vi[2]]
+    da = positions[k1, vi[0]] - a0
+    db = positions[k1, vi[1]] - b0
+    dc = positions[k1, vi[2]] - c0
+    pa, qa, ra, ka, sa = edge_row(a0, da, b0, db, vi[0], vi[1])
+    pb, qb, rb, kb, sb = edge_row(b0, db, c0, dc, vi[1], vi[2])
+    pc, qc, rc, kc, sc = edge_row(c0, dc, a0, da, vi[2], vi[0])
+    table[e, 0] = pa
+    table[e, 1] = qa
+    table[e, 2] = ra
+    table[e, 3] = pb
+    table[e, 4] = qb
+    table[e, 5] = rb
+    table[e, 6] = pc
+    table[e, 7] = qc
+    table[e, 8] = rc
+    table[e, 9] = wp.vec3(ka, kb, kc)
+    table[e, 10] = wp.vec3(sa, sb, sc)
+
+
+@wp.func
+def table_edge(table: wp.array2d(dtype=wp.vec3), e: int, j: int, d: wp.vec3, tol: float):
+    """(coefficients, degenerate) of edge j of entry e at ray d from its table row: equal to
+    edge_coeffs and edge_degenerate's."""
+    coef = wp.vec3(wp.dot(d, table[e, 3 * j]), wp.dot(d, table[e, 3 * j + 1]), wp.dot(d, table[e, 3 * j + 2]))
+    big = wp.max(wp.max(wp.abs(coef[0]), wp.abs(coef[1])), wp.abs(coef[2]))
+    degenerate = int(0)
+    if big * big <= tol * tol * (wp.dot(d, d) * table[e, 9][j]):
+        if big <= tol * wp.length(d) * table[e, 10][j]:
+            degenerate = 1
+    return coef, degenerate
+
+
+@wp.func
+def prism_edges_table(table: wp.array2d(dtype=wp.vec3), e: int, d: wp.vec3, tol: float):
+    """prism_edges of moving entry e at ray d from the eye, from its edge_table row: three dot
+    products an edge instead of four cross products."""
+    ca, dga = table_edge(table, e, 0, d, tol)
+    cb, dgb = table_edge(table, e, 1, d, tol)
+    cc, dgc = table_edge(table, e, 2, d, tol)
+    return ca, cb, cc, quad_roots(ca), quad_roots(cb), quad_roots(cc), dga, dgb, dgc
+
+
+@wp.func
+def entry_edges(view: View, geo: Geometry, e: int, d: wp.vec3, a0: wp.vec3, da: wp.vec3, b0: wp.vec3, db: wp.vec3,
+                c0: wp.vec3, dc: wp.vec3, vi: wp.vec3i):
+    """prism_edges of moving entry e at ray d (its eye-relative vertices a0.. and changes da..):
+    from the entry's edge table when the frame has one and the rays leave from the eye."""
+    if view.ortho == 0 and geo.entry_edges.shape[1] == EDGE_TABLE_WIDTH:
+        return prism_edges_table(geo.entry_edges, e, d, DEGENERATE_TOL_F32)
+    return prism_edges(d, a0, da, b0, db, c0, dc, vi, DEGENERATE_TOL_F32)
 
 
 @wp.func

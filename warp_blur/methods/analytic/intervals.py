@@ -26,7 +26,7 @@ from ...kernels.dome import dome_over
 from ...kernels.kernel_types import Bins, Geometry, Shading, View
 from ...kernels.raster import add_pixel, box_rejects, pixel_tile
 from ...kernels.rays import intersect_triangle, static_entry_hit
-from .coverage import DEGENERATE_TOL_F32, MAX_SPAN_PIECES, next_breakpoint, piece_covered, prism_edges
+from .coverage import MAX_SPAN_PIECES, entry_edges, next_breakpoint, piece_covered
 from .occlusion import all_hidden, entry_hidden, interval_hidden, record_interval, reset_slots
 from .moving import Moving, depth_at, depth_range, entry_moving, eye_relative, in_range, plane_hit, sample_ray
 from .radiance import boundary_radiance, lerp_in_time, radiance_plan, sub_piece_time
@@ -207,7 +207,7 @@ def entry_intervals(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d:
             return 0
         return emit_pieces(e, m, o, d, 0.0, 1.0, limit, base, iv_t, iv_z, iv_e, occ, row, g, whole)
     a0, b0, c0, da, db, dc = eye_relative(m, o)
-    ca, cb, cc, ra, rb, rc, dga, dgb, dgc = prism_edges(d, a0, da, b0, db, c0, dc, vi, DEGENERATE_TOL_F32)
+    ca, cb, cc, ra, rb, rc, dga, dgb, dgc = entry_edges(view, geo, e, d, a0, da, b0, db, c0, dc, vi)
     # may the view depth leave [near, far]? (the hit is a convex combination of the vertices)
     z_range = depth_range(m)
     may_clip = int(0)
@@ -283,7 +283,7 @@ def entry_reaches(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: w
         hit = intersect_triangle(o, d, m.a0, m.b0, m.c0, vi)
         return hit[0] != 0.0 and in_range(view, hit[1])
     a0, b0, c0, da, db, dc = eye_relative(m, o)
-    ca, cb, cc, ra, rb, rc, dga, dgb, dgc = prism_edges(d, a0, da, b0, db, c0, dc, vi, DEGENERATE_TOL_F32)
+    ca, cb, cc, ra, rb, rc, dga, dgb, dgc = entry_edges(view, geo, e, d, a0, da, b0, db, c0, dc, vi)
     s_prev = float(0.0)
     for _step in range(MAX_SPAN_PIECES):
         if s_prev < 1.0:

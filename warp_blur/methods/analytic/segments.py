@@ -260,6 +260,10 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
                       tri_visible=vis, light_segments=light_k)
 
 
+#: tests switch this off to compare coverage from the per-entry edge tables with coverage computed per ray
+EDGE_TABLES = True
+
+
 def entry_near_depth(positions: np.ndarray, tri_vertices: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray,
                      entry_k1: np.ndarray) -> np.ndarray:
     """(E,) nearest view depth of each entry's six vertices (its triangle at both span ends): a
@@ -278,8 +282,11 @@ def prepare_motion(ctx):
     shading() gives the Shading. Where lights cast shadows, its maps are built on a helper thread
     (parallel.Background) from the moment the plan is known, beside the camera's own set-up and
     whatever the caller runs before it first calls shading(), which waits for them."""
+    import warp as wp
+
     from ...raster.device_data import make_bins, make_geometry
     from ...shadows.free_entries import with_shadow_free
+    from .coverage import EDGE_TABLE_WIDTH, edge_table
     s = ctx.settings
     with ctx.timed("segments"):
         plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.resolved_segment_error_px,
@@ -293,6 +300,11 @@ def prepare_motion(ctx):
                                                                                   plan.entry_k1))
         ctx.counters["back_faces_dropped"] = int(hidden.sum())
     geo = make_geometry(ctx.tables, plan.positions, plan.normals, plan.entry_tri, plan.entry_k0, plan.entry_k1)
+    if EDGE_TABLES and not ctx.proj.orthographic and len(plan.entry_tri):
+        # the moving entries' edge quadratics, once an entry rather than once a pixel ray
+        geo.entry_edges = wp.zeros((len(plan.entry_tri), EDGE_TABLE_WIDTH), dtype=wp.vec3, device=ctx.device)
+        wp.launch(edge_table, dim=len(plan.entry_tri), inputs=[geo.positions, geo.tri_vertices, geo.entry_tri,
+                  geo.entry_k0, geo.entry_k1], outputs=[geo.entry_edges], device=ctx.device)
     # fractional opacity changes with time slots, so its entries take the moving path even when still
     static = (plan.entry_k0 == plan.entry_k1) & ~ctx.scene.tri_fractional[plan.entry_tri]
     near = entry_near_depth(plan.positions, ctx.scene.tri_vertices, plan.entry_tri, plan.entry_k0, plan.entry_k1)
