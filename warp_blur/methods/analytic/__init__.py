@@ -51,6 +51,8 @@ KEEP_STILL_RADIANCE = True
 #: takes its radiance there (resolve_bitmask); tests switch this off to compare against shading
 #: every interval's ends
 SEGMENT_JUNCTIONS = True
+#: tests switch this off to compare against shading both smooth neighbours where a ray crosses their shared edge
+SHARED_EDGES = True
 # Time slots per shutter at which exact mode tests a moving cutout (with time bits, the bits'
 # own slots): a cutout's mask is point-sampled in time, its edges in space stay exact.
 EXACT_CUTOUT_SLOTS = 256
@@ -154,7 +156,7 @@ class _IntervalPass:
                 order = wp.empty(iv_t.shape[0], dtype=int, device=dev)
                 launch_pixels(resolve_bitmask, len(pixels_np),
                               lambda first, n: [*shading, pixels, spans, iv_t, iv_z, iv_e, bits, keep_still,
-                                                int(SEGMENT_JUNCTIONS), self.weight, first, first, order,
+                                                int(SEGMENT_JUNCTIONS) | 2 * int(SHARED_EDGES), self.weight, first, first, order,
                                                 wp.zeros((n, 3 * words), dtype=wp.uint32, device=dev),
                                                 self.shaded.band(), self.reused.band(), self.rgba],
                               dev, s.threads)
