@@ -145,3 +145,23 @@ def translucent_layers_stage(path: str) -> str:
                                             (x - 0.6, height, -0.6)], [4], [0, 1, 2, 3], material=look)
     stage.GetRootLayer().Save()
     return path
+
+
+def lit_ball_stage(path: str, smooth: bool) -> str:
+    """A lit icosphere (80 triangles, shared vertices) flying across the view with blur many
+    pixels long: smooth (its cage with interpolated normals) or flat-shaded."""
+    import trimesh
+    from pxr import UsdGeom
+    stage = new_stage(path)
+    add_camera(stage)
+    add_dome(stage, (0.08, 0.09, 0.12))
+    add_distant_light(stage, "/World/Sun", intensity=2.5, rotate=(-40, 30, 0))
+    mat = add_material(stage, "/World/Looks/Ball", diffuse=(0.55, 0.35, 0.25), roughness=0.5, specular=(0.04,) * 3)
+    ico = trimesh.creation.icosphere(subdivisions=1, radius=2.0)
+    mesh = add_mesh(stage, "/World/Ball", [tuple(map(float, v)) for v in ico.vertices], [3] * len(ico.faces),
+                    [int(x) for x in ico.faces.ravel()], material=mat,
+                    translate_samples={0.5: (-0.6, -0.1, 0.0), 1.5: (0.6, 0.15, 0.0)})
+    if smooth:
+        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.catmullClark)
+    stage.GetRootLayer().Save()
+    return path
