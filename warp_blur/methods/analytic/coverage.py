@@ -27,25 +27,33 @@ DEGENERATE_TOL_F64 = 1.0e-15
 
 
 @wp.func
-def edge_coeffs(d: Any, a0: Any, da: Any, b0: Any, db: Any, ia: int, ib: int):
-    """(c0, c1, c2) of e(s) = c0 + c1 s + c2 s² for the edge from a(s) = a0 + s da to b(s)
+def edge_vectors(a0: Any, da: Any, b0: Any, db: Any, ia: int, ib: int):
+    """(P, Q, R) with e(s) = d·P + s d·Q + s² d·R for the edge from a(s) = a0 + s da to b(s)
     (eye-relative), in the canonical form of `edge_cross`: base × (other − base) from the
-    lower-index vertex, exactly antisymmetric between the triangles sharing the edge."""
-    sign = type(d[0])(1.0)
+    lower-index vertex, exactly antisymmetric between the triangles sharing the edge (the sign is
+    folded in, which is exact)."""
+    sign = type(a0[0])(1.0)
     p0 = a0
     dp = da
     q0 = b0
     dq = db
     if ia > ib:
-        sign = type(d[0])(-1.0)
+        sign = type(a0[0])(-1.0)
         p0 = b0
         dp = db
         q0 = a0
         dq = da
     e0 = q0 - p0
     de = dq - dp
-    return sign * type(d)(wp.dot(d, wp.cross(p0, e0)), wp.dot(d, wp.cross(p0, de) + wp.cross(dp, e0)),
-                          wp.dot(d, wp.cross(dp, de)))
+    return sign * wp.cross(p0, e0), sign * (wp.cross(p0, de) + wp.cross(dp, e0)), sign * wp.cross(dp, de)
+
+
+@wp.func
+def edge_coeffs(d: Any, a0: Any, da: Any, b0: Any, db: Any, ia: int, ib: int):
+    """(c0, c1, c2) of e(s) = c0 + c1 s + c2 s² for the edge from a(s) = a0 + s da to b(s) at ray d
+    (edge_vectors)."""
+    p, q, r = edge_vectors(a0, da, b0, db, ia, ib)
+    return type(d)(wp.dot(d, p), wp.dot(d, q), wp.dot(d, r))
 
 
 @wp.func
@@ -165,27 +173,15 @@ EDGE_TABLE_WIDTH = wp.constant(11)
 
 @wp.func
 def edge_row(a0: wp.vec3, da: wp.vec3, b0: wp.vec3, db: wp.vec3, ia: int, ib: int):
-    """(P, Q, R, K, S) of the edge from a(s) = a0 + s da to b(s) (eye-relative): for any ray d from
-    the eye, edge_coeffs = (d·P, d·Q, d·R) with the same float32 operations (the sign folded in,
-    which is exact), and edge_degenerate's scales: its bound is d·d × K, its scale |d| × S."""
-    sign = float(1.0)
-    p0 = a0
-    dp = da
-    q0 = b0
-    dq = db
-    if ia > ib:
-        sign = -1.0
-        p0 = b0
-        dp = db
-        q0 = a0
-        dq = da
-    e0 = q0 - p0
-    de = dq - dp
+    """(P, Q, R, K, S) of the edge from a(s) = a0 + s da to b(s) (eye-relative): edge_vectors, so
+    that for any ray d from the eye edge_coeffs = (d·P, d·Q, d·R), and edge_degenerate's scales:
+    its bound is d·d × K, its scale |d| × S."""
+    p, q, r = edge_vectors(a0, da, b0, db, ia, ib)
     f0 = b0 - a0
     df = db - da
     k = 2.0 * (wp.dot(a0, a0) + wp.dot(da, da)) * 2.0 * (wp.dot(f0, f0) + wp.dot(df, df))
     s = (wp.length(a0) + wp.length(da)) * (wp.length(f0) + wp.length(df))
-    return sign * wp.cross(p0, e0), sign * (wp.cross(p0, de) + wp.cross(dp, e0)), sign * wp.cross(dp, de), k, s
+    return p, q, r, k, s
 
 
 @wp.kernel(enable_backward=False)

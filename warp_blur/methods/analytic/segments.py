@@ -169,20 +169,26 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
                     dev_l = max(dev_l, light_deviation(snap(a + q * stride).lights, la + (q / 4.0) * (lb - la)))
             if dev_l <= LIGHT_TOLERANCE:
                 light_k, lights_pending = k, False
-        for ui in list(pending):
-            unit = scene.units[ui]
-            o, n = scene.unit_vertex_offsets[ui], unit.num_points * unit.num_instances
-            dev = np.zeros(n)
-            for j in range(k):
-                a, b = 4 * j * stride, (4 * j + 4) * stride
-                pa, pb = pos(a, o, n), pos(b, o, n)
-                for q in (1, 2, 3):
-                    approx = pa + (q / 4.0) * (pb - pa)
-                    dev = np.maximum(dev, screen_distance_px(proj, pos(a + q * stride, o, n), approx))
+        # every pending prim's vertices at once (numpy calls per check, not per prim and check)
+        units = list(pending)
+        spans = [(scene.unit_vertex_offsets[ui], scene.units[ui].num_points * scene.units[ui].num_instances)
+                 for ui in units]
+        idx = np.concatenate([np.arange(o, o + n) for o, n in spans]) if units else np.zeros(0, np.int64)
+        dev_all = np.zeros(len(idx))
+        for j in range(k):
+            a, b = 4 * j * stride, (4 * j + 4) * stride
+            pa, pb = snap(a).positions[idx], snap(b).positions[idx]
+            for q in (1, 2, 3):
+                approx = pa + (q / 4.0) * (pb - pa)
+                dev_all = np.maximum(dev_all, screen_distance_px(proj, snap(a + q * stride).positions[idx], approx))
+        start = 0
+        for ui, (o, n) in zip(units, spans):
+            dev = dev_all[start:start + n]
+            start += n
             if (dev <= pending[ui]).all():
                 chosen = k
                 if chosen > 1:  # not linear: honour the prim's nonlinear sample count hint
-                    while chosen < min(_hint(unit.prim) - 1, m):
+                    while chosen < min(_hint(scene.units[ui].prim) - 1, m):
                         chosen *= 2
                 seg_of_unit[ui] = chosen
                 max_err = max(max_err, float(dev.max()) if n else 0.0)
