@@ -1,6 +1,10 @@
 """Write usd_scenes/large.usda: about 70k triangles (the seed paper's scale) for benchmarks:
 870 instanced 80-triangle rocks (a PointInstancer with velocities and angular velocities) over a
-ground, with a distant light and a dome. Render at 1024x768."""
+ground, with a distant light and a dome. Render at 1024x768.
+
+USD applies angular velocities to authored orientations only, and this stage authors none, so
+its rocks translate without turning (UsdGeom.PointInstancer.ComputeInstanceTransformsAtTime,
+which the renderer uses, says the same). Kept as it is: every `large` figure in docs/ is of it."""
 
 from __future__ import annotations
 
