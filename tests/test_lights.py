@@ -76,3 +76,25 @@ def test_authored_normals_shade_in_every_method(scene_path, method):
     stage.GetRootLayer().Save()
     r = wb.render(path, frame=1, method=method, resolution=(16, 12), aovs=())
     assert r.rgba[6, 8, 0] == pytest.approx(0.5 / math.pi * 2.0 * 0.5, rel=2e-3)
+
+
+def test_light_inputs_are_read_once_unless_they_vary(scene_path):
+    """A frame's motion planning builds the light table at every snapshot: a light whose inputs and
+    visibility have no time samples is read once (its inputs held), a light with an animated
+    intensity is read at every time, and both give the table read afresh at each time."""
+    import numpy as np
+    from pxr import Usd, UsdGeom
+    from scenes import lit_stage, ramp_light_stage
+
+    from warp_blur.usd.lights import find_lights, light_table
+    for build, varies in ((lit_stage, False), (ramp_light_stage, True)):
+        stage = Usd.Stage.Open(build(scene_path()))
+        lights, _ = find_lights(stage)
+        fresh = lambda: find_lights(stage)[0]   # noqa: E731
+        cam = np.eye(4)
+        tables = [light_table(lights, t, cam, UsdGeom.XformCache(t)) for t in (0.6, 1.0, 1.4)]
+        assert lights[0].held["varies"] is varies
+        assert ("inputs" in lights[0].held) is not varies
+        for t, table in zip((0.6, 1.0, 1.4), tables):
+            np.testing.assert_array_equal(table, light_table(fresh(), t, cam, UsdGeom.XformCache(t)))
+        assert np.array_equal(tables[0], tables[2]) is not varies   # the ramp's intensity rises

@@ -17,7 +17,7 @@ latlong texture: see dome.py).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from pxr import Gf, Usd, UsdGeom, UsdLux
@@ -33,6 +33,7 @@ POINT_LIGHT_RADIUS = 0.5
 class LightPrim:
     prim: Usd.Prim
     kind: int
+    held: dict = field(default_factory=dict)   # light_inputs' answer when no input can change in time
 
 
 def _finite_input(light: UsdLux.LightAPI, attr, time: Usd.TimeCode, fallback, width: int) -> np.ndarray:
@@ -109,6 +110,56 @@ def dome_radiance(dome: LightPrim | None, frame: float) -> np.ndarray:
     return _radiance(UsdLux.LightAPI(dome.prim), t).astype(np.float32)
 
 
+def _input_attrs(lp: LightPrim) -> list[Usd.Attribute]:
+    """The attributes light_inputs reads for the light's kind."""
+    api = UsdLux.LightAPI(lp.prim)
+    attrs = [api.GetColorAttr(), api.GetIntensityAttr(), api.GetExposureAttr(), api.GetNormalizeAttr(),
+             UsdLux.ShadowAPI(lp.prim).GetShadowEnableAttr()]
+    if lp.kind == DISTANT:
+        attrs.append(UsdLux.DistantLight(lp.prim).GetAngleAttr())
+    elif lp.kind == SPHERE:
+        attrs += [UsdLux.SphereLight(lp.prim).GetRadiusAttr(), UsdLux.SphereLight(lp.prim).GetTreatAsPointAttr()]
+    elif lp.kind == RECT:
+        attrs += [UsdLux.RectLight(lp.prim).GetWidthAttr(), UsdLux.RectLight(lp.prim).GetHeightAttr()]
+    elif lp.kind == DISK:
+        attrs.append(UsdLux.DiskLight(lp.prim).GetRadiusAttr())
+    return attrs
+
+
+def light_inputs(lp: LightPrim, t: Usd.TimeCode) -> tuple:
+    """(visible, radiance (3,), normalize, shadow, size) of a light at time t from its authored
+    inputs: radiance with a distant light's illuminance factor in, size (radius, treated as a
+    point) for a sphere, (width, height) for a rect, the radius of a disk, else 0. Read once a
+    scene when none of the inputs, nor the light's visibility, has time samples (a frame's motion
+    planning asks at every snapshot)."""
+    if "inputs" in lp.held:
+        return lp.held["inputs"]
+    from .stage import visibility_varies
+    visible = UsdGeom.Imageable(lp.prim).ComputeVisibility(t) != UsdGeom.Tokens.invisible
+    api = UsdLux.LightAPI(lp.prim)
+    radiance = _radiance(api, t)
+    normalize = bool(api.GetNormalizeAttr().Get(t))
+    shadow = UsdLux.ShadowAPI(lp.prim).GetShadowEnableAttr().Get(t)
+    size = 0.0
+    if lp.kind == DISTANT:
+        radiance = radiance * distant_illuminance_factor(UsdLux.DistantLight(lp.prim), normalize, t)
+    elif lp.kind == SPHERE:
+        sl = UsdLux.SphereLight(lp.prim)
+        size = (float(sl.GetRadiusAttr().Get(t) or 0.0), bool(sl.GetTreatAsPointAttr().Get(t)))
+    elif lp.kind == RECT:
+        rl = UsdLux.RectLight(lp.prim)
+        size = (float(rl.GetWidthAttr().Get(t) or 1.0), float(rl.GetHeightAttr().Get(t) or 1.0))
+    elif lp.kind == DISK:
+        size = float(UsdLux.DiskLight(lp.prim).GetRadiusAttr().Get(t) or 0.5)
+    inputs = (visible, radiance, normalize, shadow, size)
+    if "varies" not in lp.held:
+        lp.held["varies"] = visibility_varies([lp.prim]) or any(a and a.ValueMightBeTimeVarying()
+                                                                for a in _input_attrs(lp))
+    if not lp.held["varies"]:
+        lp.held["inputs"] = inputs
+    return inputs
+
+
 def light_table(lights: list[LightPrim], time: float, cam_from_world: np.ndarray,
                 xform_cache: UsdGeom.XformCache) -> np.ndarray:
     """(NL, LIGHT_WIDTH) float32 table of the lights at `time`, in camera space.
@@ -120,15 +171,11 @@ def light_table(lights: list[LightPrim], time: float, cam_from_world: np.ndarray
     for lp in lights:
         # an invisible light keeps its row with no radiance: tables keep one row per light at every
         # instant, so animated visibility blends like any other light change
-        visible = UsdGeom.Imageable(lp.prim).ComputeVisibility(t) != UsdGeom.Tokens.invisible
-        api = UsdLux.LightAPI(lp.prim)
+        visible, radiance, normalize, shadow, size = light_inputs(lp, t)
         m_world = np.array(xform_cache.GetLocalToWorldTransform(lp.prim), np.float64)
         m = m_world @ cam_from_world
         origin = m[3, :3]
         ax, ay, az = m[0, :3], m[1, :3], m[2, :3]
-        radiance = _radiance(api, t)
-        normalize = bool(api.GetNormalizeAttr().Get(t))
-        shadow = UsdLux.ShadowAPI(lp.prim).GetShadowEnableAttr().Get(t)
         row = np.zeros(LIGHT_WIDTH, np.float64)
         row[0] = lp.kind
         row[4:7] = origin
@@ -138,13 +185,11 @@ def light_table(lights: list[LightPrim], time: float, cam_from_world: np.ndarray
             row[13:16] = ay / max(np.linalg.norm(ay), 1e-30)
         if lp.kind == DISTANT:
             row[7:10] = az / max(np.linalg.norm(az), 1e-30)
-            radiance = radiance * distant_illuminance_factor(UsdLux.DistantLight(lp.prim), normalize, t)
         elif lp.kind == SPHERE:
-            sl = UsdLux.SphereLight(lp.prim)
             with np.errstate(all="ignore"):
                 scale = float(np.cbrt(abs(np.linalg.det(m_world[:3, :3]))))
-            radius = float(sl.GetRadiusAttr().Get(t) or 0.0) * scale
-            if sl.GetTreatAsPointAttr().Get(t):
+            radius = size[0] * scale
+            if size[1]:
                 radius = 0.0
             row[16] = radius
             if normalize and radius > 0:
@@ -153,13 +198,11 @@ def light_table(lights: list[LightPrim], time: float, cam_from_world: np.ndarray
             n = -az / max(np.linalg.norm(az), 1e-30)
             row[7:10] = n
             if lp.kind == RECT:
-                rl = UsdLux.RectLight(lp.prim)
-                hu = ax * float(rl.GetWidthAttr().Get(t) or 1.0) / 2
-                hv = ay * float(rl.GetHeightAttr().Get(t) or 1.0) / 2
+                hu = ax * size[0] / 2
+                hv = ay * size[1] / 2
                 area = 4.0 * np.linalg.norm(np.cross(hu, hv))
             else:
-                r = float(UsdLux.DiskLight(lp.prim).GetRadiusAttr().Get(t) or 0.5)
-                hu, hv = ax * r, ay * r
+                hu, hv = ax * size, ay * size
                 area = np.pi * np.linalg.norm(np.cross(hu, hv))
             row[10:13], row[13:16] = hu, hv
             if normalize and area > 0:
