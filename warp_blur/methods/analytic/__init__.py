@@ -156,7 +156,8 @@ class _IntervalPass:
                 order = wp.empty(iv_t.shape[0], dtype=int, device=dev)
                 launch_pixels(resolve_bitmask, len(pixels_np),
                               lambda first, n: [*shading, pixels, spans, iv_t, iv_z, iv_e, bits, keep_still,
-                                                int(SEGMENT_JUNCTIONS) | 2 * int(SHARED_EDGES), self.weight, first, first, order,
+                                                int(SEGMENT_JUNCTIONS) | 2 * int(SHARED_EDGES), self.weight, first, first,
+                                                order,
                                                 wp.zeros((n, 3 * words), dtype=wp.uint32, device=dev),
                                                 self.shaded.band(), self.reused.band(), self.rgba],
                               dev, s.threads)

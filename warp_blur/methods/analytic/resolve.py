@@ -349,11 +349,12 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
     keep_still = 1 (lights that hold still, shadow maps of one instant): a still entry's radiance is
     the same over all its intervals (its every piece is shaded as one constant, at any time the
     same), so it is shaded once a sample and each of its intervals adds it × its visible share.
-    junctions = 1: a linear interval that starts or ends where one of the last two linear intervals
-    shaded meets it at a motion-segment junction of the same triangle (junction()) takes that
-    interval's radiance there instead of shading the same point at the same time again; reused[0]
-    counts the ends taken (the ends of linear intervals only: a short or still one is shaded
-    otherwise)."""
+    junctions (bits, junction()): a linear interval that starts or ends where one of the last two
+    linear intervals shaded meets it at the same point at the same time takes that interval's
+    radiance there instead of shading it again: bit 0 at a motion-segment junction of the same
+    triangle (or where one entry's span was cut in pieces), bit 1 across the edge two smooth
+    neighbours share. reused[0] counts the ends taken (the ends of linear intervals only: a short
+    or still one is shaded otherwise)."""
     k = first + wp.tid()
     pix = pixels[k]
     row = k - band_first
