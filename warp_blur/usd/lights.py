@@ -23,6 +23,7 @@ import numpy as np
 from pxr import Gf, Usd, UsdGeom, UsdLux
 
 from ..core.log import warn_once
+from .stage import visibility_varies
 
 LIGHT_WIDTH = 18
 DISTANT, SPHERE, RECT, DISK = 0, 1, 2, 3
@@ -134,7 +135,6 @@ def light_inputs(lp: LightPrim, t: Usd.TimeCode) -> tuple:
     planning asks at every snapshot)."""
     if "inputs" in lp.held:
         return lp.held["inputs"]
-    from .stage import visibility_varies
     visible = UsdGeom.Imageable(lp.prim).ComputeVisibility(t) != UsdGeom.Tokens.invisible
     api = UsdLux.LightAPI(lp.prim)
     radiance = _radiance(api, t)
