@@ -147,6 +147,13 @@ def face_visibility(sh: Shading, f: int, b0: int, b1: int, frac: float, pl: wp.v
     c = face_coords(sh, f, pl, nl)
     if c[3] == 0.0:
         return -1.0
+    return coords_visibility(sh, f, c, b0, b1, frac)
+
+
+@wp.func
+def coords_visibility(sh: Shading, f: int, c: wp.vec4, b0: int, b1: int, frac: float) -> float:
+    """face_visibility at face coordinates c (face_coords' texel x, texel y and biased depth) of
+    face slot f: the PCF of depth comparisons there, at instant b0 blended with b1 by frac."""
     depth = c[2]
     maps = sh.shadow_maps
     size = sh.shadow_size
@@ -168,6 +175,12 @@ def face_steady(sh: Shading, f: int, pl: wp.vec3, nl: wp.vec3, margin: int) -> i
     c = face_coords(sh, f, pl, nl)
     if c[3] == 0.0:
         return -1
+    return coords_steady(sh, f, c, margin)
+
+
+@wp.func
+def coords_steady(sh: Shading, f: int, c: wp.vec4, margin: int) -> int:
+    """face_steady at face coordinates c of face slot f (1 steady, 0 a texel varies)."""
     s = sh.shadow_size
     r = sh.shadow_pcf + margin
     i0 = int(wp.floor(c[0]))
@@ -177,15 +190,6 @@ def face_steady(sh: Shading, f: int, pl: wp.vec3, nl: wp.vec3, margin: int) -> i
             if sh.shadow_varying[f, wp.clamp(j, 0, s - 1), wp.clamp(i, 0, s - 1)] != wp.uint8(0):
                 return 0
     return 1
-
-
-@wp.func
-def light_steady(sh: Shading, j: int, u: float, p: wp.vec3, n: wp.vec3) -> bool:
-    """True when light j holds still and every sample's lookup from p reads texels that never
-    change over the shutter: its visibility is then the same at every instant."""
-    if sh.shadow_lights[j, 3] != 1:
-        return False
-    return light_taps_steady(sh, j, u, p, n, 0)
 
 
 @wp.func
@@ -241,16 +245,9 @@ def map_instant(sh: Shading, b: int, u: float) -> float:
 
 
 @wp.func
-def light_visibility_at(sh: Shading, j: int, u: float, p: wp.vec3, vel: wp.vec3, n: wp.vec3) -> float:
-    """Visibility of light j from p at shutter time u: mean over the light's samples, linear in
-    time between the maps' instants. Each map is read as of its own instant: the light's frame
-    then, and the receiver point moved there with its velocity vel (camera-space units per
-    shutter), so a moving surface is never shadowed by where it was (or will be) itself."""
-    first = sh.shadow_lights[j, 0]
-    if first < 0:
-        return 1.0
-    num_samples = sh.shadow_lights[j, 1]
-    num_faces = sh.shadow_lights[j, 2]
+def bracket_instants(sh: Shading, u: float):
+    """(b0, b1, frac): the map instants whose times bracket shutter time u and the weight of b1
+    (the nearest instant alone, frac 0, where shadow_nearest is set; 0, 0, 0 for a single map)."""
     times = sh.shadow_times
     b0 = int(0)
     b1 = int(0)
@@ -265,6 +262,68 @@ def light_visibility_at(sh: Shading, j: int, u: float, p: wp.vec3, vel: wp.vec3,
                 b0 = b1
             b1 = b0
             frac = 0.0
+    return b0, b1, frac
+
+
+@wp.func
+def still_span_visibility(sh: Shading, j: int, u: float, du: float, steps: int, p: wp.vec3, n: wp.vec3) -> float:
+    """light_visibility over [u - du/2, u + du/2] in `steps` lookups, where light j holds still
+    and so does the receiver point p (normal n): every step reads each sample's map at the same
+    face and texel coordinates, found once here; only the map instants change. Texels that never
+    vary there (every sample): one lookup, at the first map's instant. Each step's value is the
+    one light_visibility_at gives; the sum runs over samples, then steps (the same sum)."""
+    first = sh.shadow_lights[j, 0]
+    num_samples = sh.shadow_lights[j, 1]
+    num_faces = sh.shadow_lights[j, 2]
+    axes, origin = instant_frame(sh, j, 0)
+    pl = axes * (p - origin)
+    nl = axes * n
+    steady_total = float(0.0)
+    span_total = float(0.0)
+    steady = int(1)
+    for m in range(num_samples):
+        slot = first + m * num_faces
+        face = int(-1)
+        c = wp.vec4(0.0, 0.0, 0.0, 0.0)
+        for f in range(num_faces):
+            if face < 0:
+                cf = face_coords(sh, slot + f, pl, nl)
+                if cf[3] != 0.0:
+                    face = slot + f
+                    c = cf
+        if face < 0:
+            # in no face: nothing that casts a shadow was there, lit at every instant
+            steady_total += 1.0
+            span_total += float(steps)
+        else:
+            v0 = coords_visibility(sh, face, c, 0, 0, 0.0)
+            steady_total += v0
+            if coords_steady(sh, face, c, 0) == 1:
+                span_total += float(steps) * v0
+            else:
+                steady = 0
+                for i in range(steps):
+                    ui = u - 0.5 * du + du * (float(i) + 0.5) / float(steps)
+                    b0, b1, frac = bracket_instants(sh, ui)
+                    span_total += coords_visibility(sh, face, c, b0, b1, frac)
+    if steady != 0:
+        return steady_total / float(num_samples)
+    return span_total / (float(num_samples) * float(steps))
+
+
+@wp.func
+def light_visibility_at(sh: Shading, j: int, u: float, p: wp.vec3, vel: wp.vec3, n: wp.vec3) -> float:
+    """Visibility of light j from p at shutter time u: mean over the light's samples, linear in
+    time between the maps' instants. Each map is read as of its own instant: the light's frame
+    then, and the receiver point moved there with its velocity vel (camera-space units per
+    shutter), so a moving surface is never shadowed by where it was (or will be) itself."""
+    first = sh.shadow_lights[j, 0]
+    if first < 0:
+        return 1.0
+    num_samples = sh.shadow_lights[j, 1]
+    num_faces = sh.shadow_lights[j, 2]
+    times = sh.shadow_times
+    b0, b1, frac = bracket_instants(sh, u)
     t0 = map_instant(sh, b0, u)
     t1 = map_instant(sh, b1, u)
     blend = frac > 0.0 and b1 != b0
@@ -316,9 +375,9 @@ def light_visibility(sh: Shading, j: int, u: float, du: float, p: wp.vec3, vel: 
         steps = wp.clamp(int(wp.ceil(du * float(sh.shadow_times))), 1, sh.shadow_times)
     if steps == 1:
         return light_visibility_at(sh, j, u, p, vel, n)
-    if wp.length(vel) == 0.0 and light_steady(sh, j, u, p, n):
-        # the same at every instant: look up at the first map's own instant (one map, no blend)
-        return light_visibility_at(sh, j, 0.5 / float(sh.shadow_times), p, vel, n)
+    if wp.length(vel) == 0.0 and sh.shadow_lights[j, 3] == 1:
+        # light and receiver hold still: the lookups differ only in their map instants
+        return still_span_visibility(sh, j, u, du, steps, p, n)
     total = float(0.0)
     for i in range(steps):
         ui = u - 0.5 * du + du * (float(i) + 0.5) / float(steps)
