@@ -30,6 +30,8 @@ from .tessellate import is_closed_surface, tessellate_gprim, triangulate_corners
 
 FLAG_DOUBLE_SIDED = 1
 FLAG_SMOOTH = 2
+#: prims with at most this many points (and one instance) are transformed together in snapshots
+SMALL_UNIT_POINTS = 256
 
 _IMPLICIT = (UsdGeom.Cube, UsdGeom.Sphere, UsdGeom.Cylinder, UsdGeom.Cone, UsdGeom.Capsule, UsdGeom.Plane)
 _SILENT_TYPES = {"Xform", "Scope", "Camera", "", "Material", "Shader", "NodeGraph", "GeomSubset",
@@ -114,6 +116,8 @@ class Scene:
         self._xf_caches: dict[float, UsdGeom.XformCache] = {}
         self._last_normals: tuple[np.ndarray, np.ndarray] | None = None   # (positions, their normals)
         self._skins = Skins()
+        self._groups: list | None = None          # _small_unit_groups, found on first use
+        self._unit_grouped = np.zeros(0, bool)
         self._collect()
         self.light_prims, dome = find_lights(stage)
         self.dome = dome_radiance(dome, frame)
@@ -524,13 +528,47 @@ class Scene:
                 normals[o:o + u.num_points * u.num_instances] = transform_normals(u.normals_at(t_prim), m)
         return normals
 
+    def _small_unit_groups(self) -> list[tuple[float, list[int], np.ndarray, np.ndarray]]:
+        """Single-instance units of at most SMALL_UNIT_POINTS points, grouped by motion blur scale
+        (one USD time each): (scale, unit indices, (V_group,) rows of their vertices in the
+        scene's vertex array, (V_group,) each vertex's slot in the group). Found once a scene."""
+        if self._groups is None:
+            by_scale: dict[float, list[int]] = {}
+            for ui, u in enumerate(self.units):
+                if u.num_instances == 1 and u.num_points <= SMALL_UNIT_POINTS:
+                    by_scale.setdefault(u.blur_scale, []).append(ui)
+            self._groups = []
+            self._unit_grouped = np.zeros(len(self.units), bool)
+            for scale, group in by_scale.items():
+                if len(group) < 2:
+                    continue
+                counts = np.array([self.units[ui].num_points for ui in group])
+                rows = np.concatenate([np.arange(self.unit_vertex_offsets[ui],
+                                                 self.unit_vertex_offsets[ui] + self.units[ui].num_points)
+                                       for ui in group])
+                self._groups.append((scale, group, rows, np.repeat(np.arange(len(group)), counts)))
+                self._unit_grouped[group] = True
+        return self._groups
+
     def snapshot(self, time: float, with_normals: bool = True) -> Snapshot:
         """The scene at USD time `time` (within the shutter), in camera space (without vertex
         normals when with_normals is False: a probe that only compares positions)."""
         cam_from_world = self.cam_from_world(time)
         positions = np.zeros((self.num_vertices, 3), np.float64)
         unit_visible = np.ones(len(self.units), bool)
+        for scale, group, rows, slot_of_vertex in self._small_unit_groups():
+            # one batched transform for many small prims (per-prim NumPy calls cost more than their math)
+            t_prim = self.frame + (time - self.frame) * scale
+            cache = self._xf_cache(t_prim)
+            m = np.concatenate([self.units[ui].transforms_at(t_prim, cache) for ui in group]) @ cam_from_world[None]
+            pts = np.concatenate([self.units[ui].points_at(t_prim) for ui in group])
+            mv = m[slot_of_vertex]                                                  # (V_group, 4, 4)
+            positions[rows] = (pts[:, None, :] @ mv[:, :3, :3])[:, 0] + mv[:, 3, :3]
+            for ui in group:
+                unit_visible[ui] = self.units[ui].visible_at(t_prim)
         for ui, u in enumerate(self.units):
+            if self._unit_grouped[ui]:
+                continue
             t_prim = self.frame + (time - self.frame) * u.blur_scale
             cache = self._xf_cache(t_prim)
             pts = u.points_at(t_prim)
