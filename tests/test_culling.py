@@ -11,6 +11,7 @@ import warp_blur as wb
 import warp_blur.methods.analytic.segments as segments
 import warp_blur.methods.frame as frame
 from warp_blur.raster.culling import hidden_back_faces
+from warp_blur.usd import tessellate
 from warp_blur.usd.tessellate import is_closed_surface
 
 CUBE_POINTS = np.array([(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], np.float64)
@@ -19,7 +20,9 @@ CUBE_QUADS = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 
 CUBE_TRIS = np.array([t for q in CUBE_QUADS for t in ([q[0], q[1], q[2]], [q[0], q[2], q[3]])], np.int64)
 
 
-def test_closed_surfaces_are_told_from_open_and_misoriented_ones():
+@pytest.mark.parametrize("small", [64, 0], ids=["python", "numpy"])
+def test_closed_surfaces_are_told_from_open_and_misoriented_ones(monkeypatch, small):
+    monkeypatch.setattr(tessellate, "SMALL_SURFACE_TRIANGLES", small)
     assert is_closed_surface(CUBE_TRIS, CUBE_POINTS)
     assert not is_closed_surface(CUBE_TRIS[:-2], CUBE_POINTS)                  # a face missing
     flipped = CUBE_TRIS.copy()
@@ -31,6 +34,41 @@ def test_closed_surfaces_are_told_from_open_and_misoriented_ones():
     for i, v in enumerate(CUBE_QUADS[0]):
         seam[:2][seam[:2] == v] = 8 + i
     assert is_closed_surface(seam, seam_points)
+
+
+def test_small_surfaces_are_judged_in_python_as_numpy_judges_them(monkeypatch):
+    """Random edits of a cube with a seam (faces dropped, flipped, repeated, collapsed; corners
+    moved onto others or to -0.0): the plain-Python test for small surfaces agrees with NumPy's."""
+    rng = np.random.default_rng(3)
+    seam_points = np.concatenate([CUBE_POINTS, CUBE_POINTS[CUBE_QUADS[0]]])
+    seam = CUBE_TRIS.copy()
+    for i, v in enumerate(CUBE_QUADS[0]):
+        seam[:2][seam[:2] == v] = 8 + i
+    verdicts = []
+    for _ in range(400):
+        tris, points = seam.copy(), seam_points.copy()
+        for _edit in range(rng.integers(0, 3)):
+            kind = rng.integers(0, 5)
+            t = rng.integers(0, len(tris))
+            if kind == 0:
+                tris = np.delete(tris, t, axis=0)
+            elif kind == 1:
+                tris[t] = tris[t][::-1]
+            elif kind == 2:
+                tris = np.concatenate([tris, tris[t:t + 1]])
+            elif kind == 3:
+                tris[t, rng.integers(0, 3)] = tris[t, rng.integers(0, 3)]
+            else:
+                points[rng.integers(0, len(points))] = points[rng.integers(0, len(points))] * np.array([1.0, 1.0, -1.0]) \
+                    if rng.integers(0, 2) else points[rng.integers(0, len(points))]
+        if rng.integers(0, 4) == 0:
+            points = np.where(points == 0.0, -0.0, points)
+        monkeypatch.setattr(tessellate, "SMALL_SURFACE_TRIANGLES", 64)
+        python = is_closed_surface(tris, points)
+        monkeypatch.setattr(tessellate, "SMALL_SURFACE_TRIANGLES", 0)
+        assert python == is_closed_surface(tris, points)
+        verdicts.append(python)
+    assert 20 < sum(verdicts) < 380   # both verdicts are common among the edits
 
 
 def _facing_over_span(a0, a1, steps=2001) -> np.ndarray:

@@ -74,6 +74,33 @@ def test_non_finite_inputs_fall_back_with_a_warning(tmp_path, case, method):
     assert any("not a finite" in w for w in result.stats["warnings"]), result.stats["warnings"]
 
 
+@pytest.mark.parametrize("name", ["roughness", "diffuseColor", "useSpecularWorkflow"])
+def test_material_values_pass_the_finite_test_exactly_when_numpy_passes_them(name):
+    """_finite's plain-Python test (no NumPy for ordinary values) accepts a value only where the
+    NumPy test accepts it, and _finite keeps exactly the values NumPy accepts."""
+    from pxr import Gf
+
+    from warp_blur.usd.materials import FALLBACKS, _finite, _plainly_finite
+    values = [0.5, 1, True, 0, -2.5e30, 1e30, float("nan"), float("inf"), "0.5", "abc", None, (0.1, 0.2, 0.3),
+              Gf.Vec3f(0.1, 0.2, 0.3), (float("nan"), 0.0, 0.0), (1.0, 2.0), [[1.0, 2.0, 3.0]], np.array([1.0, 2.0, 3.0]),
+              np.array([0.5]), (1e31, 0.0, 0.0), Gf.Vec2f(1, 2)]
+
+    def numpy_accepts(value) -> bool:
+        try:
+            arr = np.asarray(value, np.float64).reshape(np.shape(FALLBACKS[name]))
+            return bool(np.isfinite(arr).all()) and np.abs(arr).max(initial=0.0) <= 1e30
+        except (TypeError, ValueError):
+            return False
+    log.reset()
+    accepted = 0
+    for value in values:
+        if _plainly_finite(value, FALLBACKS[name]):
+            assert numpy_accepts(value), value
+            accepted += 1
+        assert (_finite(value, name, "/M") is value) == numpy_accepts(value), value
+    assert accepted >= 3
+
+
 # ------------------------------------------------------------------ boundaries (issue 17)
 def _quad(scene_path, **kw):
     from scenes import emissive_quad_stage

@@ -138,6 +138,10 @@ def _tessellate(prim: Usd.Prim, time: Usd.TimeCode) -> tuple[np.ndarray, np.ndar
     return np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int32), smooth
 
 
+#: is_closed_surface tests surfaces of at most this many triangles in plain Python
+SMALL_SURFACE_TRIANGLES = 64
+
+
 def is_closed_surface(tris: np.ndarray, points: np.ndarray) -> bool:
     """True when triangles (T, 3) over points (N, 3) form closed, consistently oriented surfaces
     (points at the same position welded: seams of split normals or texture coordinates): every
@@ -145,12 +149,36 @@ def is_closed_surface(tris: np.ndarray, points: np.ndarray) -> bool:
     surface enters it through a front face first, so its back faces cannot show."""
     if len(tris) == 0 or len(points) == 0:
         return False
+    if len(tris) <= SMALL_SURFACE_TRIANGLES:
+        return _small_surface_closed(np.asarray(tris).tolist(), np.asarray(points, np.float64).tolist())
     tris = np.asarray(tris, np.int64)
     if _edges_pair_up(tris, len(points)):
         return True
     rows = np.ascontiguousarray(np.asarray(points, np.float64) + 0.0)     # + 0.0: -0.0 and 0.0 alike
     _, weld = np.unique(rows.view(np.dtype((np.void, rows.itemsize * 3))).ravel(), return_inverse=True)
     return _edges_pair_up(weld.reshape(-1)[tris], len(points))
+
+
+def _small_surface_closed(tris: list, points: list) -> bool:
+    """is_closed_surface for a few triangles, in plain Python (NumPy's calls cost more than the
+    work): the same test, points welded by equal coordinates."""
+    if _edge_set_pairs_up(tris):
+        return True
+    weld: dict[tuple, int] = {}
+    ids = [weld.setdefault(tuple(p), len(weld)) for p in points]   # -0.0 == 0.0 as keys, as + 0.0 makes them
+    return _edge_set_pairs_up([[ids[v] for v in t] for t in tris])
+
+
+def _edge_set_pairs_up(tris: list) -> bool:
+    """_edges_pair_up for a list of triangles: no repeated or degenerate directed edge, and each
+    one's reverse present."""
+    edges = set()
+    for t in tris:
+        for a, b in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0])):
+            if a == b or (a, b) in edges:
+                return False
+            edges.add((a, b))
+    return all((b, a) in edges for a, b in edges)
 
 
 def _edges_pair_up(tris: np.ndarray, n: int) -> bool:
