@@ -216,13 +216,25 @@ def _udim_source(node: UsdShade.Shader, pattern: str, output: str, name: str, fr
     return _Source(_finite(const, name, material_path), binding=binding, st=st_name)
 
 
+def _items(value) -> list:
+    """The elements of a vector value: a Gf vector's own buffer where it has one of floats
+    (iterating one costs ~12 us: its iteration ends on an exception), else by index."""
+    try:
+        view = memoryview(value)
+    except TypeError:
+        return [value[i] for i in range(len(value))]
+    if view.ndim != 1 or view.format not in ("f", "d", "e"):
+        raise TypeError("not a vector of floats")
+    return view.tolist()
+
+
 def _plainly_finite(value, fallback) -> bool:
     """True when value is a number (fallback a number) or a sequence of as many numbers as the
     fallback tuple, all finite and at most 1e30 in size: _finite's test without NumPy, which costs
     more than the test for one scalar (a material reads ten inputs a frame). False may still pass
     _finite's own test."""
     try:
-        nums = [float(x) for x in value] if isinstance(fallback, tuple) else [float(value)]
+        nums = [float(x) for x in _items(value)] if isinstance(fallback, tuple) else [float(value)]
     except (TypeError, ValueError):
         return False
     if isinstance(fallback, tuple) and len(nums) != len(fallback):
