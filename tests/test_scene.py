@@ -303,3 +303,47 @@ def test_hard_edged_face_varying_normals_shade_each_side_with_its_own(scene_path
         want = np.array([-0.6, 0.0, 0.8]) if x_centre[t] < 0 else np.array([0.6, 0.0, 0.8])
         np.testing.assert_allclose(corner_normals[t], np.tile(want, (3, 1)), atol=1e-5)
     assert len(np.unique(np.round(snap.positions, 9), axis=0)) == 6
+
+
+def test_small_prims_placed_together_agree_with_usdgeom_and_with_one_by_one(scene_path, monkeypatch):
+    """Scene.snapshot places many small prims in one batch (usd/units.py): each prim's points as
+    UsdGeom transforms them (at its own motion blur scale's time), its visibility as authored, and
+    the same positions (to float64 rounding) as placing them one by one."""
+    from authoring import add_camera, add_quad, new_stage
+
+    import warp_blur.usd.units as units
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage, translate_samples={0: (0, 1, 10), 2: (1, 0, 8)})
+    for i in range(12):
+        q = add_quad(stage, f"/World/Q{i}", 0.3, 0.2, translate_samples={0: (i * 0.3 - 2, 0, -i), 2: (i * 0.2, 1, 0)},
+                     rotate_axis="Z", rotate_samples={0: 0, 2: 30 * i})
+        if i % 3 == 0:
+            UsdGeom.MotionAPI.Apply(q.GetPrim()).CreateMotionBlurScaleAttr(0.5)
+    UsdGeom.Imageable(stage.GetPrimAtPath("/World/Q4")).GetVisibilityAttr().Set("invisible", 1.2)
+    UsdGeom.Imageable(stage.GetPrimAtPath("/World/Q4")).GetVisibilityAttr().Set("inherited", 0.5)
+    moving = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Q5")).GetPointsAttr()
+    moving.Set([(-0.3, -0.2, 0), (0.3, -0.2, 0), (0.3, 0.2, 0), (-0.3, 0.2, 0)], 0.5)
+    moving.Set([(-0.5, -0.2, 0), (0.3, -0.4, 0), (0.3, 0.6, 0), (-0.3, 0.2, 0)], 1.5)
+    stage.GetRootLayer().Save()
+    stage, cam, scene = _scene(path)
+    groups = scene._small_unit_groups()
+    assert sorted(len(g.units) for g in groups) == [4, 8]   # blur scales 0.5 and 1
+    for t in (0.5, 0.9, 1.3):
+        snap = scene.snapshot(t)
+        w2c = UsdGeom.Xformable(cam.GetPrim()).ComputeLocalToWorldTransform(t).GetInverse()
+        for ui, u in enumerate(scene.units):
+            t_prim = 1.0 + (t - 1.0) * u.blur_scale
+            l2w = UsdGeom.Xformable(u.prim).ComputeLocalToWorldTransform(t_prim)
+            pts = UsdGeom.Mesh(u.prim).GetPointsAttr().Get(t_prim)
+            expect = np.array([list(w2c.Transform(l2w.Transform(Gf.Vec3d(p)))) for p in pts])
+            o = scene.unit_vertex_offsets[ui]
+            np.testing.assert_allclose(snap.positions[o:o + u.num_points], expect, atol=1e-9)
+            visible = UsdGeom.Imageable(u.prim).ComputeVisibility(t_prim) != UsdGeom.Tokens.invisible
+            assert snap.tri_visible[scene.tri_unit == ui].all() == visible
+        monkeypatch.setattr(units, "SMALL_UNIT_POINTS", 0)
+        alone = Scene(stage, cam, 1.0, Shutter(0.5, 1.5)).snapshot(t)
+        monkeypatch.undo()
+        np.testing.assert_allclose(snap.positions, alone.positions, rtol=1e-15, atol=1e-15)
+        assert np.array_equal(snap.tri_visible, alone.tri_visible)
+    assert not scene.snapshot(1.3).tri_visible[scene.tri_unit == 4].any()    # Q4 hides at 1.2

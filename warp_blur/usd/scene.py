@@ -7,7 +7,7 @@ kernels see them as float32, so scenes far from the origin keep their precision.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -24,47 +24,17 @@ from .points import derived_points_fn, points_unit_fields
 from .normals import authored_normals_fn, split_normals_fn, transform_normals, vertex_normals, vertex_normals_since
 from .subdivision import mesh_refinement, refined_surface_primvars, refined_triangles, screen_level, stage_level
 from .skinning import Skins, skinned_points_fn
-from .stage import Shutter, prims_visible, visibility_varies
+from .stage import Shutter
 from .primvars import corner_primvar
 from .tessellate import is_closed_surface, tessellate_gprim, triangulate_corners
+from .units import GeomUnit, SmallUnitGroup, small_unit_groups
 
 FLAG_DOUBLE_SIDED = 1
 FLAG_SMOOTH = 2
-#: prims with at most this many points (and one instance) are transformed together in snapshots
-SMALL_UNIT_POINTS = 256
 
 _IMPLICIT = (UsdGeom.Cube, UsdGeom.Sphere, UsdGeom.Cylinder, UsdGeom.Cone, UsdGeom.Capsule, UsdGeom.Plane)
 _SILENT_TYPES = {"Xform", "Scope", "Camera", "", "Material", "Shader", "NodeGraph", "GeomSubset",
                  "RenderSettings", "RenderProduct", "RenderVar", "SkelRoot", "Skeleton", "SkelAnimation"}
-
-
-@dataclass
-class GeomUnit:
-    """One renderable prim (or one prototype mesh of a PointInstancer with all its instances)."""
-
-    path: str
-    prim: Usd.Prim
-    local_tris: np.ndarray            # (T, 3) int32 indices into the unit's local points
-    num_points: int
-    points_at: Callable[[float], np.ndarray]          # time -> (N, 3) float64 local points
-    transforms_at: Callable[[float, UsdGeom.XformCache], np.ndarray]  # -> (I, 4, 4) float64
-    num_instances: int
-    corner_colors: np.ndarray         # (T, 3, 3) float32 colour primvar (displayColor) at each triangle corner
-    corner_uvs: np.ndarray | None     # (T, 3, 2) float32 texture coordinates at each corner, or None
-    material: int
-    flags: int
-    blur_scale: float = 1.0
-    visibility_prims: list = field(default_factory=list)
-    tri_materials: np.ndarray | None = None   # (T,) int32 per local triangle (GeomSubset bindings), else `material`
-    normals_at: Callable[[float], np.ndarray] | None = None   # time -> (N, 3) authored local normals (normals.py)
-    corner_opacity: np.ndarray | None = None  # (T, 3) float32 opacity primvar (displayOpacity) at each corner
-
-    visibility: tuple | None = None   # (may vary over time, the value when it does not): found on first use
-
-    def visible_at(self, time: float) -> bool:
-        if self.visibility is None:   # once per prim: most never animate their visibility
-            self.visibility = (visibility_varies(self.visibility_prims), prims_visible(self.visibility_prims, time))
-        return prims_visible(self.visibility_prims, time) if self.visibility[0] else self.visibility[1]
 
 
 def prototype_unit_name(instancer: str, proto_path: Sdf.Path, sub_path: Sdf.Path) -> str:
@@ -528,26 +498,12 @@ class Scene:
                 normals[o:o + u.num_points * u.num_instances] = transform_normals(u.normals_at(t_prim), m)
         return normals
 
-    def _small_unit_groups(self) -> list[tuple[float, list[int], np.ndarray, np.ndarray]]:
-        """Single-instance units of at most SMALL_UNIT_POINTS points, grouped by motion blur scale
-        (one USD time each): (scale, unit indices, (V_group,) rows of their vertices in the
-        scene's vertex array, (V_group,) each vertex's slot in the group). Found once a scene."""
+    def _small_unit_groups(self) -> list[SmallUnitGroup]:
         if self._groups is None:
-            by_scale: dict[float, list[int]] = {}
-            for ui, u in enumerate(self.units):
-                if u.num_instances == 1 and u.num_points <= SMALL_UNIT_POINTS:
-                    by_scale.setdefault(u.blur_scale, []).append(ui)
-            self._groups = []
+            self._groups = small_unit_groups(self.units, self.unit_vertex_offsets)
             self._unit_grouped = np.zeros(len(self.units), bool)
-            for scale, group in by_scale.items():
-                if len(group) < 2:
-                    continue
-                counts = np.array([self.units[ui].num_points for ui in group])
-                rows = np.concatenate([np.arange(self.unit_vertex_offsets[ui],
-                                                 self.unit_vertex_offsets[ui] + self.units[ui].num_points)
-                                       for ui in group])
-                self._groups.append((scale, group, rows, np.repeat(np.arange(len(group)), counts)))
-                self._unit_grouped[group] = True
+            for g in self._groups:
+                self._unit_grouped[g.units] = True
         return self._groups
 
     def snapshot(self, time: float, with_normals: bool = True) -> Snapshot:
@@ -556,16 +512,9 @@ class Scene:
         cam_from_world = self.cam_from_world(time)
         positions = np.zeros((self.num_vertices, 3), np.float64)
         unit_visible = np.ones(len(self.units), bool)
-        for scale, group, rows, slot_of_vertex in self._small_unit_groups():
-            # one batched transform for many small prims (per-prim NumPy calls cost more than their math)
-            t_prim = self.frame + (time - self.frame) * scale
-            cache = self._xf_cache(t_prim)
-            m = np.concatenate([self.units[ui].transforms_at(t_prim, cache) for ui in group]) @ cam_from_world[None]
-            pts = np.concatenate([self.units[ui].points_at(t_prim) for ui in group])
-            mv = m[slot_of_vertex]                                                  # (V_group, 4, 4)
-            positions[rows] = (pts[:, None, :] @ mv[:, :3, :3])[:, 0] + mv[:, 3, :3]
-            for ui in group:
-                unit_visible[ui] = self.units[ui].visible_at(t_prim)
+        for g in self._small_unit_groups():   # many small prims: one batched transform
+            t_prim = self.frame + (time - self.frame) * g.blur_scale
+            g.place(self.units, t_prim, self._xf_cache(t_prim), cam_from_world, positions, unit_visible)
         for ui, u in enumerate(self.units):
             if self._unit_grouped[ui]:
                 continue
