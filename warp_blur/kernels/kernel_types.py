@@ -108,9 +108,9 @@ class Shading:
 @wp.struct
 class Bins:
     """Entries overlapping each screen tile: tile_entries[tile_offsets[t]:tile_offsets[t+1]], and
-    each entry's swept pixel box and swept band (binning.swept_bands) for a cheap per-pixel reject."""
+    each entry's swept pixel box and swept slabs (binning.swept_bands) for a cheap per-pixel reject."""
 
     tile_offsets: wp.array(dtype=int)
     tile_entries: wp.array(dtype=int)
     entry_boxes: wp.array(dtype=wp.vec4)    # (E,) swept pixel box (x0, y0, x1, y1) of each entry
-    entry_bands: wp.array(dtype=wp.vec4)    # (E,) swept band (nx, ny, lo, hi) across its screen motion
+    entry_bands: wp.array2d(dtype=wp.vec4)  # (E, S) swept slabs (nx, ny, lo, hi): across its motion, along its edges

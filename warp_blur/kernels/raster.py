@@ -32,13 +32,17 @@ def listed_pixel(view: View, pixels: wp.array(dtype=int), k: int):
 
 @wp.func
 def box_rejects(bins: Bins, e: int, x: float, y: float) -> bool:
-    """True when the sample (x, y pixels) lies outside entry e's swept pixel box or band."""
+    """True when the sample (x, y pixels) lies outside entry e's swept pixel box or one of its
+    swept slabs (binning.swept_bands)."""
     b = bins.entry_boxes[e]
     if x < b[0] or x > b[2] or y < b[1] or y > b[3]:
         return True
-    n = bins.entry_bands[e]
-    w = n[0] * x + n[1] * y
-    return w < n[2] or w > n[3]
+    for k in range(bins.entry_bands.shape[1]):
+        n = bins.entry_bands[e, k]
+        w = n[0] * x + n[1] * y
+        if w < n[2] or w > n[3]:
+            return True
+    return False
 
 
 @wp.func

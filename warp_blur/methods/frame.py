@@ -467,7 +467,8 @@ class FrameContext:
         num = self.scene.num_triangles
         boxes = np.zeros((num, 4), np.float32)
         boxes[tris] = bins.entry_boxes
-        bands = np.tile(np.array([0.0, 0.0, -1.0, 1.0], np.float32), (num, 1))
+        slabs = bins.entry_bands.shape[1] if bins.entry_bands is not None else 1
+        bands = np.tile(np.array([0.0, 0.0, -1.0, 1.0], np.float32), (num, slabs, 1))
         if bins.entry_bands is not None:
             bands[tris] = bins.entry_bands
         bins.tile_entries = tris[bins.tile_entries].astype(np.int32)

@@ -30,7 +30,7 @@ class TileBins:
     tiles_x: int
     tiles_y: int
     entry_boxes: np.ndarray | None = None   # (E, 4) float32 swept pixel boxes
-    entry_bands: np.ndarray | None = None   # (E, 4) float32 swept bands (nx, ny, lo, hi), see swept_bands
+    entry_bands: np.ndarray | None = None   # (E, S, 4) float32 swept slabs (nx, ny, lo, hi), see swept_bands
 
     @property
     def num_pairs(self) -> int:
@@ -80,35 +80,52 @@ def entry_pixel_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np
     return box, keep
 
 
+#: slabs per entry (swept_bands): across its screen motion, then along each edge's normal
+BAND_SLABS = 4
+
+
 def swept_bands(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarray, entry_tri: np.ndarray,
                 entry_k0: np.ndarray, entry_k1: np.ndarray, margin: float = 1.0) -> np.ndarray:
-    """(E, 4) float32 bands (nx, ny, lo, hi): every pixel an entry covers over its span has
-    lo <= nx·x + ny·y <= hi, with (nx, ny) the unit normal of its screen motion. A moving triangle
-    stays inside the convex hull of its six projected vertices (in front of the eye), so the band
-    is exact as a bound; across its motion it is the triangle's width where its box is the whole
-    streak's, which is what rejects most of a long diagonal streak's box. Entries that barely move
-    (< 2 px), cross the near plane or have no finite projection get (0, 0, -1, 1): no reject."""
-    out = np.zeros((len(entry_tri), 4), np.float32)
-    out[:, 2], out[:, 3] = -1.0, 1.0
+    """(E, BAND_SLABS, 4) float32 slabs (nx, ny, lo, hi): every pixel an entry covers over its span
+    has lo <= nx·x + ny·y <= hi in each. A moving triangle stays inside the convex hull of its six
+    projected vertices (in front of the eye; a still one: its three), so each slab over them is
+    exact as a bound. Slab 0 runs across the screen motion (the triangle's width where its box is
+    the whole streak's: what rejects most of a long diagonal streak's box), slabs 1-3 along the
+    normals of the triangle's edges at the span's start: with slab 0 they are the hexagon a
+    translating triangle sweeps (the triangle itself where it holds still), which rejects the
+    corners of its box. Slab 0 is (0, 0, -1, 1), no reject, for entries that barely move (< 2 px);
+    all are for entries that cross the near plane or have no finite projection."""
+    out = np.zeros((len(entry_tri), BAND_SLABS, 4), np.float32)
+    out[..., 2], out[..., 3] = -1.0, 1.0
     if len(entry_tri) == 0:
         return out
     vi_t = tri_vertices[entry_tri].T                                    # (3, E)
     pts = np.concatenate([positions[entry_k0[None, :], vi_t], positions[entry_k1[None, :], vi_t]], axis=0)
     depth = -pts[..., 2].astype(np.float64)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):   # behind the eye: not finite, no band
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):   # behind the eye: not finite, no slabs
         r = proj.project(pts)                                           # (6, E, 2)
         motion = r[3:].mean(axis=0) - r[:3].mean(axis=0)                # (E, 2)
         length = np.hypot(motion[:, 0], motion[:, 1])
-    ok = np.isfinite(r).all(axis=(0, 2)) & (length > 2.0)
+    ok = np.isfinite(r).all(axis=(0, 2))
     if not proj.orthographic:
         ok &= (depth >= proj.near).all(axis=0)
     if not ok.any():
         return out
-    n = np.stack([-motion[ok, 1], motion[ok, 0]], axis=1) / length[ok, None]
-    along = r[:, ok, 0] * n[None, :, 0] + r[:, ok, 1] * n[None, :, 1]   # (6, E_ok)
-    out[ok, 0], out[ok, 1] = n[:, 0], n[:, 1]
-    out[ok, 2] = along.min(axis=0) - margin
-    out[ok, 3] = along.max(axis=0) + margin
+    r = r[:, ok]
+    normals = [np.stack([-motion[ok, 1], motion[ok, 0]], axis=1)]      # across the motion
+    for a, b in ((0, 1), (1, 2), (2, 0)):                               # each edge's normal at the start
+        edge = r[b] - r[a]
+        normals.append(np.stack([-edge[:, 1], edge[:, 0]], axis=1))
+    moving = length[ok] > 2.0
+    rows = np.nonzero(ok)[0]
+    for k, n in enumerate(normals):
+        size = np.hypot(n[:, 0], n[:, 1])
+        use = (size > 0.0) & np.isfinite(size) & (moving if k == 0 else True)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            n = n / size[:, None]
+        along = r[..., 0] * n[None, :, 0] + r[..., 1] * n[None, :, 1]   # (6, E_ok)
+        slab = np.stack([n[:, 0], n[:, 1], along.min(axis=0) - margin, along.max(axis=0) + margin], axis=1)
+        out[rows[use], k] = slab[use]
     return out
 
 
@@ -146,9 +163,9 @@ def clipped_hull_boxes(proj: Projection, pts: np.ndarray, margin: float) -> np.n
 
 
 def band_misses_tiles(bands: np.ndarray, tx: np.ndarray, ty: np.ndarray, tile_size: int) -> np.ndarray:
-    """(P,) True where the swept band (P, 4) of an entry (swept_bands) misses its tile (tx, ty)
-    altogether: no sample of the tile passes the kernels' band test (box_rejects), so the pair
-    need not be listed. The tile's range along the band's normal is its centre's ± the half
+    """(P,) True where a slab (P, 4) of an entry (swept_bands) misses its tile (tx, ty)
+    altogether: no sample of the tile passes the kernels' slab test (box_rejects), so the pair
+    need not be listed. The tile's range along the slab's normal is its centre's ± the half
     extent; a 1e-3 px slack keeps the answer on the kernels' side of float32 rounding."""
     half = 0.5 * tile_size
     nx, ny = bands[:, 0].astype(np.float64), bands[:, 1].astype(np.float64)
@@ -169,8 +186,8 @@ def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size
     """Tile lists from entry pixel boxes (count, prefix sum, fill — on the host with NumPy). Each
     tile lists its entries in entry order, or by ascending order_key (E,) when given (e.g. the
     nearest depth, so that kernels walking a list meet the front surfaces first). With swept
-    bands (E, 4) (swept_bands), a tile that an entry's box reaches but its band misses does not
-    list it: a diagonal streak's box holds many such tiles."""
+    slabs (E, S, 4) (swept_bands; (E, 4): one each), a tile that an entry's box reaches but one
+    of its slabs misses does not list it: a diagonal streak's box holds many such tiles."""
     tiles_x = (proj.width + tile_size - 1) // tile_size
     tiles_y = (proj.height + tile_size - 1) // tile_size
     idx = np.nonzero(keep)[0]
@@ -187,9 +204,13 @@ def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size
     local = np.arange(total) - np.repeat(starts, counts)
     tx = tx0[rep] + local % w[rep]
     ty = ty0[rep] + local // w[rep]
+    if bands is not None:
+        bands = np.asarray(bands, np.float32)
+        bands = bands[:, None] if bands.ndim == 2 else bands          # (E, 4): one slab each
     if bands is not None and total:
-        hit = ~band_misses_tiles(np.asarray(bands)[idx[rep]], tx, ty, tile_size)
-        rep, tx, ty = rep[hit], tx[hit], ty[hit]
+        for k in range(bands.shape[1]):
+            hit = ~band_misses_tiles(bands[idx[rep], k], tx, ty, tile_size)
+            rep, tx, ty = rep[hit], tx[hit], ty[hit]
     tile = ty * tiles_x + tx
     if order_key is None:
         order = np.argsort(tile, kind="stable")
@@ -198,5 +219,4 @@ def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size
     entries = idx[rep[order]].astype(np.int32)
     per_tile = np.bincount(tile, minlength=tiles_x * tiles_y)
     offsets = np.concatenate([[0], np.cumsum(per_tile)]).astype(np.int32)
-    return TileBins(offsets, entries, tiles_x, tiles_y, np.asarray(boxes, np.float32),
-                    None if bands is None else np.asarray(bands, np.float32))
+    return TileBins(offsets, entries, tiles_x, tiles_y, np.asarray(boxes, np.float32), bands)
