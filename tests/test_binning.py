@@ -1,7 +1,11 @@
-"""Tile binning: band culling drops only (entry, tile) pairs that no sample could keep."""
+"""Tile binning: slab culling (swept_bands) drops only (entry, tile) pairs and samples that no coverage could keep."""
+
+import os
 
 import numpy as np
+import pytest
 
+import warp_blur as wb
 from warp_blur.core.camera import Projection
 from warp_blur.raster.binning import TILE_SIZE, band_misses_tiles, bin_entries
 
@@ -87,3 +91,62 @@ def test_a_moving_triangle_crossing_the_near_plane_is_boxed_by_its_part_in_front
     box, _ = entry_pixel_bounds(proj, np.concatenate([ground, moved]), np.array([[0, 1, 2]]), np.array([0]),
                                 np.array([0]), np.array([1]), 0.05)
     assert box[0, 1] > proj.height / 2 - 1    # nothing above the horizon (the screen's middle row)
+
+
+def test_swept_slabs_hold_every_point_a_moving_triangle_covers_and_a_still_one_is_its_own_slabs():
+    """swept_bands: every point of a moving triangle, at any time of its span, lies in each of its
+    slabs (its six projected vertices' hull holds it while it is in front of the eye); entries
+    that cross the near plane get no reject; a still triangle's slabs are the triangle (points off
+    it by more than the margin are rejected), as a translating one's are the hexagon it sweeps."""
+    from warp_blur.raster.binning import BAND_SLABS, swept_bands
+    proj = Projection(False, (-0.5, -0.375, 0.5, 0.375), 0.5, 500.0, 640, 480)
+    rng = np.random.default_rng(5)
+    n = 300
+    p0 = rng.uniform([-3.0, -3.0, -12.0], [3.0, 3.0, -1.0], (n, 3, 3))
+    p1 = p0 + rng.uniform(-2.0, 2.0, (n, 1, 3)) + rng.normal(0.0, 0.5, (n, 3, 3))
+    p1[: n // 10] = p0[: n // 10]                                               # some hold still
+    positions = np.concatenate([p0.reshape(1, -1, 3), p1.reshape(1, -1, 3)])
+    tri_vertices = np.arange(3 * n).reshape(n, 3)
+    slabs = swept_bands(proj, positions, tri_vertices, np.arange(n), np.zeros(n, int), np.ones(n, int), 0.05)
+    assert slabs.shape == (n, BAND_SLABS, 4)
+    s = rng.uniform(0.0, 1.0, (n, 400, 1))
+    w = rng.dirichlet((1.0, 1.0, 1.0), (n, 400))
+    pts = (w[..., None] * (p0[:, None] + s[..., None] * (p1 - p0)[:, None])).sum(axis=2)
+    r = proj.project(pts)                                                        # (n, 400, 2)
+    crossing = ((-p0[..., 2] < proj.near) | (-p1[..., 2] < proj.near)).any(axis=1)
+    assert 0 < crossing.sum() < n // 2
+    along = r[:, :, None, 0] * slabs[:, None, :, 0] + r[:, :, None, 1] * slabs[:, None, :, 1]   # (n, 400, S)
+    inside = (along >= slabs[:, None, :, 2]) & (along <= slabs[:, None, :, 3])
+    front = ~crossing
+    assert inside[front].all()
+    assert (slabs[crossing, :, :2] == 0).all()                                  # no reject where it crosses
+    # a still triangle: pixels of its box off the triangle by more than the margin fail a slab
+    still = np.nonzero(front[: n // 10])[0]
+    assert len(still) > 10
+    for i in still[:10]:
+        tri = proj.project(p0[i])                                                # (3, 2)
+        lo, hi = tri.min(axis=0), tri.max(axis=0)
+        q = lo + rng.uniform(0.0, 1.0, (2000, 2)) * (hi - lo)
+        a, b, c = tri
+        def cross(u, v):
+            return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+        d = [cross(v1 - v0, q - v0) / np.hypot(*(v1 - v0)) for v0, v1 in ((a, b), (b, c), (c, a))]
+        sign = np.sign(cross(b - a, c - a))
+        outside = (np.stack(d) * sign < -0.06).any(axis=0)                      # off an edge by > margin
+        wq = q[:, None, 0] * slabs[i, None, :, 0] + q[:, None, 1] * slabs[i, None, :, 1]
+        kept = ((wq >= slabs[i, None, :, 2]) & (wq <= slabs[i, None, :, 3])).all(axis=1)
+        assert outside.sum() > 200 and not (kept & outside).any()
+
+
+@pytest.mark.parametrize("method", ["analytic", "stochastic", "accumulation"])
+@pytest.mark.parametrize("scene", ["deep_overlap", "rotation"])
+def test_slab_rejects_change_no_image(monkeypatch, method, scene):
+    """The slabs only skip work: images with them equal images with no slab reject at all."""
+    import warp_blur.methods.frame as frame
+    from conftest import SCENES
+    path = os.path.join(SCENES, f"{scene}.usda")
+    kw = dict(frame=2, method=method, resolution=(96, 72), samples=8 if method != "analytic" else 4)
+    with_slabs = wb.render(path, **kw).rgba
+    real = frame.swept_bands
+    monkeypatch.setattr(frame, "swept_bands", lambda *a, **k: real(*a, **k)[:, :0])   # no slabs at all
+    assert np.array_equal(with_slabs, wb.render(path, **kw).rgba)
