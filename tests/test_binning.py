@@ -109,6 +109,8 @@ def test_swept_slabs_hold_every_point_a_moving_triangle_covers_and_a_still_one_i
     tri_vertices = np.arange(3 * n).reshape(n, 3)
     slabs = swept_bands(proj, positions, tri_vertices, np.arange(n), np.zeros(n, int), np.ones(n, int), 0.05)
     assert slabs.shape == (n, BAND_SLABS, 4)
+    sharp = swept_bands(proj, positions, tri_vertices, np.arange(n), np.zeros(n, int), np.zeros(n, int), 0.05)
+    assert sharp.shape == (n, 1, 4) and (sharp == np.array([0, 0, -1, 1], np.float32)).all()   # nothing moves
     s = rng.uniform(0.0, 1.0, (n, 400, 1))
     w = rng.dirichlet((1.0, 1.0, 1.0), (n, 400))
     pts = (w[..., None] * (p0[:, None] + s[..., None] * (p1 - p0)[:, None])).sum(axis=2)

@@ -88,18 +88,22 @@ def swept_bands(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarra
                 entry_k0: np.ndarray, entry_k1: np.ndarray, margin: float = 1.0) -> np.ndarray:
     """(E, BAND_SLABS, 4) float32 slabs (nx, ny, lo, hi): every pixel an entry covers over its span
     has lo <= nx·x + ny·y <= hi in each. A moving triangle stays inside the convex hull of its six
-    projected vertices (in front of the eye; a still one: its three), so each slab over them is
-    exact as a bound. Slab 0 runs across the screen motion (the triangle's width where its box is
-    the whole streak's: what rejects most of a long diagonal streak's box), slabs 1-3 along the
-    normals of the triangle's edges at the span's start: with slab 0 they are the hexagon a
-    translating triangle sweeps (the triangle itself where it holds still), which rejects the
-    corners of its box. Slab 0 is (0, 0, -1, 1), no reject, for entries that barely move (< 2 px);
-    all are for entries that cross the near plane or have no finite projection."""
-    out = np.zeros((len(entry_tri), BAND_SLABS, 4), np.float32)
+    projected vertices (in front of the eye), so each slab over them is exact as a bound. Slab 0
+    runs across the screen motion (the triangle's width where its box is the whole streak's: what
+    rejects most of a long diagonal streak's box), slabs 1-3 along the normals of the triangle's
+    edges at the span's start: with slab 0 they are the hexagon a translating triangle sweeps,
+    which rejects the corners of its box. Slab 0 is (0, 0, -1, 1), no reject, for entries that
+    barely move (< 2 px); all are for entries that hold still (their box is tested alone), cross
+    the near plane or have no finite projection. When nothing moves (a sharp instant's pass, a
+    shadow map) the result is one pass-all slab each, (E, 1, 4): there slabs cost more to compute
+    and test than they save (accumulation's binning on `large` 0.42 -> 1.1 s for 16 instants)."""
+    moving = np.nonzero(entry_k0 != entry_k1)[0]
+    out = np.zeros((len(entry_tri), BAND_SLABS if len(moving) else 1, 4), np.float32)
     out[..., 2], out[..., 3] = -1.0, 1.0
-    if len(entry_tri) == 0:
-        return out
-    vi_t = tri_vertices[entry_tri].T                                    # (3, E)
+    if len(moving) == 0:
+        return out   # a sharp instant or a shadow map: the box test alone (slabs cost more than they save)
+    entry_tri, entry_k0, entry_k1 = entry_tri[moving], entry_k0[moving], entry_k1[moving]
+    vi_t = tri_vertices[entry_tri].T                                    # (3, E_moving)
     pts = np.concatenate([positions[entry_k0[None, :], vi_t], positions[entry_k1[None, :], vi_t]], axis=0)
     depth = -pts[..., 2].astype(np.float64)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):   # behind the eye: not finite, no slabs
@@ -116,11 +120,11 @@ def swept_bands(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarra
     for a, b in ((0, 1), (1, 2), (2, 0)):                               # each edge's normal at the start
         edge = r[b] - r[a]
         normals.append(np.stack([-edge[:, 1], edge[:, 0]], axis=1))
-    moving = length[ok] > 2.0
-    rows = np.nonzero(ok)[0]
+    travels = length[ok] > 2.0
+    rows = moving[ok]
     for k, n in enumerate(normals):
         size = np.hypot(n[:, 0], n[:, 1])
-        use = (size > 0.0) & np.isfinite(size) & (moving if k == 0 else True)
+        use = (size > 0.0) & np.isfinite(size) & (travels if k == 0 else True)
         with np.errstate(divide="ignore", invalid="ignore"):
             n = n / size[:, None]
         along = r[..., 0] * n[None, :, 0] + r[..., 1] * n[None, :, 1]   # (6, E_ok)
@@ -209,6 +213,8 @@ def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size
         bands = bands[:, None] if bands.ndim == 2 else bands          # (E, 4): one slab each
     if bands is not None and total:
         for k in range(bands.shape[1]):
+            if not bands[idx, k, :2].any():
+                continue   # no entry listed here has this slab
             hit = ~band_misses_tiles(bands[idx[rep], k], tx, ty, tile_size)
             rep, tx, ty = rep[hit], tx[hit], ty[hit]
     tile = ty * tiles_x + tx
