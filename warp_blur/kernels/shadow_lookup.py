@@ -140,20 +140,9 @@ def face_coords(sh: Shading, f: int, pl: wp.vec3, nl: wp.vec3) -> wp.vec4:
 
 
 @wp.func
-def face_visibility(sh: Shading, f: int, b0: int, b1: int, frac: float, pl: wp.vec3, nl: wp.vec3) -> float:
-    """Visibility of light-local point pl (normal nl, facing the light) in face slot f, at map
-    instant b0 blended with b1 by frac (frac 0: b0 alone): in [0, 1], or -1 when the point is
-    outside the face (try the next face)."""
-    c = face_coords(sh, f, pl, nl)
-    if c[3] == 0.0:
-        return -1.0
-    return coords_visibility(sh, f, c, b0, b1, frac)
-
-
-@wp.func
 def coords_visibility(sh: Shading, f: int, c: wp.vec4, b0: int, b1: int, frac: float) -> float:
-    """face_visibility at face coordinates c (face_coords' texel x, texel y and biased depth) of
-    face slot f: the PCF of depth comparisons there, at instant b0 blended with b1 by frac."""
+    """Visibility at face coordinates c (face_coords' texel x, texel y and biased depth) of face
+    slot f: the PCF of depth comparisons there, at instant b0 blended with b1 by frac, in [0, 1]."""
     depth = c[2]
     maps = sh.shadow_maps
     size = sh.shadow_size
@@ -214,16 +203,26 @@ def light_taps_steady(sh: Shading, j: int, u: float, p: wp.vec3, n: wp.vec3, mar
 
 
 @wp.func
+def containing_face(sh: Shading, first_face: int, num_faces: int, pl: wp.vec3, nl: wp.vec3):
+    """(face slot, face_coords there) of the first face of a light sample's map (faces first_face
+    onwards) that contains light-local point pl (normal nl); (-1, zero) when none does."""
+    for f in range(num_faces):
+        c = face_coords(sh, first_face + f, pl, nl)
+        if c[3] != 0.0:
+            return first_face + f, c
+    return int(-1), wp.vec4(0.0, 0.0, 0.0, 0.0)
+
+
+@wp.func
 def map_visibility(sh: Shading, first_face: int, num_faces: int, b0: int, b1: int, frac: float, pl: wp.vec3,
                    nl: wp.vec3) -> float:
     """Visibility of light-local point pl (normal nl) in the first face of a light sample's map
     that contains it, at instant b0 blended with b1 by frac (lit when no face contains it:
     nothing that casts a shadow was there)."""
-    for f in range(num_faces):
-        v = face_visibility(sh, first_face + f, b0, b1, frac, pl, nl)
-        if v >= 0.0:
-            return v
-    return 1.0
+    face, c = containing_face(sh, first_face, num_faces, pl, nl)
+    if face < 0:
+        return 1.0
+    return coords_visibility(sh, face, c, b0, b1, frac)
 
 
 @wp.func
@@ -271,7 +270,8 @@ def still_span_visibility(sh: Shading, j: int, u: float, du: float, steps: int, 
     and so does the receiver point p (normal n): every step reads each sample's map at the same
     face and texel coordinates, found once here; only the map instants change. Texels that never
     vary there (every sample): one lookup, at the first map's instant. Each step's value is the
-    one light_visibility_at gives; the sum runs over samples, then steps (the same sum)."""
+    one light_visibility_at gives; they are summed sample by sample (the same sum in another
+    order: equal for one light sample, to rounding for several)."""
     first = sh.shadow_lights[j, 0]
     num_samples = sh.shadow_lights[j, 1]
     num_faces = sh.shadow_lights[j, 2]
@@ -282,15 +282,7 @@ def still_span_visibility(sh: Shading, j: int, u: float, du: float, steps: int, 
     span_total = float(0.0)
     steady = int(1)
     for m in range(num_samples):
-        slot = first + m * num_faces
-        face = int(-1)
-        c = wp.vec4(0.0, 0.0, 0.0, 0.0)
-        for f in range(num_faces):
-            if face < 0:
-                cf = face_coords(sh, slot + f, pl, nl)
-                if cf[3] != 0.0:
-                    face = slot + f
-                    c = cf
+        face, c = containing_face(sh, first + m * num_faces, num_faces, pl, nl)
         if face < 0:
             # in no face: nothing that casts a shadow was there, lit at every instant
             steady_total += 1.0

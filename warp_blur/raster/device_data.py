@@ -358,9 +358,7 @@ def make_bins(bins: TileBins, device: str) -> Bins:
     boxes = bins.entry_boxes if bins.entry_boxes is not None else np.zeros((0, 4), np.float32)
     b.entry_boxes = device_array(boxes.astype(np.float32), wp.vec4, device)
     bands = bins.entry_bands
-    if bands is None:   # no slab reject: (0, 0, -1, 1) passes every pixel
-        bands = np.tile(np.array([0.0, 0.0, -1.0, 1.0], np.float32), (len(boxes), 1))
-    bands = np.asarray(bands, np.float32)
-    bands = bands[:, None] if bands.ndim == 2 else bands
-    b.entry_bands = device_array(np.ascontiguousarray(bands), wp.vec4, device)
+    if bands is None:   # no slab reject: one (0, 0, -1, 1) each passes every pixel
+        bands = np.tile(np.array([0.0, 0.0, -1.0, 1.0], np.float32), (len(boxes), 1, 1))
+    b.entry_bands = device_array(bands.astype(np.float32), wp.vec4, device)   # (E, S) slabs
     return b
