@@ -7,7 +7,7 @@ import pytest
 
 import warp_blur as wb
 from warp_blur.core.camera import Projection
-from warp_blur.raster.binning import TILE_SIZE, band_misses_tiles, bin_entries
+from warp_blur.raster.binning import TILE_SIZE, band_misses_tiles, bin_entries, entry_corners
 
 
 def _kernel_band_keeps(bands: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -15,6 +15,22 @@ def _kernel_band_keeps(bands: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.nd
     b = bands.astype(np.float32)
     w = b[:, 0:1] * x.astype(np.float32) + b[:, 1:2] * y.astype(np.float32)
     return (w >= b[:, 2:3]) & (w <= b[:, 3:4])
+
+
+def test_entry_corners_are_each_entrys_vertices_at_its_two_knots():
+    rng = np.random.default_rng(3)
+    positions = rng.normal(size=(5, 40, 3))
+    tri_vertices = rng.integers(0, 40, (30, 3))
+    entry_tri = rng.integers(0, 30, 100)
+    k0 = rng.integers(0, 4, 100)
+    k1 = k0 + rng.integers(0, 2, 100)
+    pts = entry_corners(positions, tri_vertices, entry_tri, k0, k1)
+    assert pts.shape == (6, 100, 3)
+    for e in range(100):
+        for j in range(3):
+            v = tri_vertices[entry_tri[e], j]
+            assert np.array_equal(pts[j, e], positions[k0[e], v])
+            assert np.array_equal(pts[3 + j, e], positions[k1[e], v])
 
 
 def test_band_culling_never_drops_a_tile_with_a_sample_the_kernel_keeps():

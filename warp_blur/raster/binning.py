@@ -53,7 +53,7 @@ def entry_pixel_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np
         with np.errstate(divide="ignore", invalid="ignore"):
             r = proj.project(knot)[vi_t]                                # (3, E, 2)
     else:
-        pts = np.concatenate([positions[entry_k0[None, :], vi_t], positions[entry_k1[None, :], vi_t]], axis=0)
+        pts = entry_corners(positions, tri_vertices, entry_tri, entry_k0, entry_k1)
         corners = lambda mask: pts[:3, mask]                            # noqa: E731
         depth = -pts[..., 2].astype(np.float64)                         # (6, E)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -80,6 +80,17 @@ def entry_pixel_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np
     return box, keep
 
 
+def entry_corners(positions: np.ndarray, tri_vertices: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray,
+                  entry_k1: np.ndarray) -> np.ndarray:
+    """(6, E, 3) the entries' three vertices at their span's start knot, then at its end knot,
+    from positions (K+1, V, 3). One np.take over the flattened knots (~4x faster than indexing
+    with a knot array and a vertex array)."""
+    vi_t = tri_vertices[entry_tri].T                                    # (3, E)
+    nv = positions.shape[1]
+    index = np.concatenate([entry_k0[None, :] * nv + vi_t, entry_k1[None, :] * nv + vi_t], axis=0)
+    return np.take(positions.reshape(-1, 3), index, axis=0)
+
+
 #: slabs per entry (swept_bands): across its screen motion, then along each edge's normal
 BAND_SLABS = 4
 
@@ -102,26 +113,27 @@ def swept_bands(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarra
     out[..., 2], out[..., 3] = -1.0, 1.0
     if len(moving) == 0:
         return out   # a sharp instant or a shadow map: the box test alone (slabs cost more than they save)
-    entry_tri, entry_k0, entry_k1 = entry_tri[moving], entry_k0[moving], entry_k1[moving]
-    vi_t = tri_vertices[entry_tri].T                                    # (3, E_moving)
-    pts = np.concatenate([positions[entry_k0[None, :], vi_t], positions[entry_k1[None, :], vi_t]], axis=0)
+    pts = entry_corners(positions, tri_vertices, entry_tri[moving], entry_k0[moving], entry_k1[moving])
     depth = -pts[..., 2].astype(np.float64)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):   # behind the eye: not finite, no slabs
         r = proj.project(pts)                                           # (6, E, 2)
         motion = r[3:].mean(axis=0) - r[:3].mean(axis=0)                # (E, 2)
         length = np.hypot(motion[:, 0], motion[:, 1])
-    ok = np.isfinite(r).all(axis=(0, 2))
+    finite = np.isfinite(r)
+    ok = (finite[..., 0] & finite[..., 1]).all(axis=0)
     if not proj.orthographic:
         ok &= (depth >= proj.near).all(axis=0)
     if not ok.any():
         return out
-    r = r[:, ok]
+    # compress keeps (6, E_ok, 2) C-ordered (r[:, ok] would not): the reductions over the six
+    # points below then run along contiguous rows (~10x faster)
+    r = np.compress(ok, r, axis=1)
     normals = [np.stack([-motion[ok, 1], motion[ok, 0]], axis=1)]      # across the motion
     for a, b in ((0, 1), (1, 2), (2, 0)):                               # each edge's normal at the start
         edge = r[b] - r[a]
         normals.append(np.stack([-edge[:, 1], edge[:, 0]], axis=1))
     travels = length[ok] > 2.0
-    rows = moving[ok]
+    block = out[:len(travels)].copy()                                  # (E_ok, S, 4), all pass-all
     for k, n in enumerate(normals):
         size = np.hypot(n[:, 0], n[:, 1])
         use = (size > 0.0) & np.isfinite(size) & (travels if k == 0 else True)
@@ -129,7 +141,8 @@ def swept_bands(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarra
             n = n / size[:, None]
         along = r[..., 0] * n[None, :, 0] + r[..., 1] * n[None, :, 1]   # (6, E_ok)
         slab = np.stack([n[:, 0], n[:, 1], along.min(axis=0) - margin, along.max(axis=0) + margin], axis=1)
-        out[rows[use], k] = slab[use]
+        block[use, k] = slab[use]
+    out[moving[ok]] = block
     return out
 
 
