@@ -18,11 +18,12 @@ import warp as wp
 from .core import log, progress
 from .core.allocator import keep_freed_memory
 from .methods.frame import FrameContext
-from .usd.framing import is_framing_camera, place_framing_camera
+from .usd.framing import FRAMING_CAMERA_PATH, is_framing_camera, place_framing_camera
 from .core.errors import SettingsError, StageError, UserError
 from .output.exr_attributes import standard_attributes
 from .core.memory import check_frame_fits
 from .methods import get_method
+from .usd.material_cache import MaterialCache
 from .usd.scene import Scene
 from .core.settings import RenderSettings
 from .usd.stage import (choose_camera, choose_resolution, conform_policy, open_stage, projection_at,
@@ -89,6 +90,9 @@ class Renderer:
         check_frame_fits(self.settings.method, *self.resolution, self.settings.spatial_samples,
                          self.settings.frame_memory_limit_mb)
         init_warp(self.settings.device)
+        # material tables kept across frames while the stage's shading cannot change; the framing
+        # camera placed each frame is no such change
+        self.materials = MaterialCache(self.stage, ignored=FRAMING_CAMERA_PATH)
 
     def check_frame(self, frame: float) -> None:
         """Frames that are not finite, or outside the stage's authored time range, are a user error
@@ -117,7 +121,8 @@ class Renderer:
         shutter = shutter_for_frame(self.stage, self.camera, frame, s.shutter)
         t0 = time.perf_counter()
         progress.stage("load")
-        scene = Scene(self.stage, self.camera, frame, shutter, skip_invalid=s.skip_invalid, proj=proj)
+        scene = Scene(self.stage, self.camera, frame, shutter, skip_invalid=s.skip_invalid, proj=proj,
+                      materials=self.materials.table_for(frame))
         if not scene.units:
             raise StageError(f"the stage {self.scene_path} has no renderable geometry "
                              f"(meshes, implicit gprims or point instancers)")

@@ -74,14 +74,15 @@ class Scene:
     """
 
     def __init__(self, stage: Usd.Stage, camera: UsdGeom.Camera, frame: float, shutter: Shutter,
-                 skip_invalid: bool = False, proj=None) -> None:
+                 skip_invalid: bool = False, proj=None, materials: MaterialTable | None = None) -> None:
         self.stage = stage
         self.proj = proj   # the image's Projection when known: subdivision levels follow screen size
         self.camera = camera
         self.frame = frame
         self.shutter = shutter
         self.skip_invalid = skip_invalid
-        self.materials = MaterialTable(frame)
+        # a table kept from an earlier frame where nothing it read can change (material_cache.py)
+        self.materials = materials if materials is not None else MaterialTable(frame)
         self.units: list[GeomUnit] = []
         self._xf_caches: dict[float, UsdGeom.XformCache] = {}
         self._last_normals: tuple[np.ndarray, np.ndarray] | None = None   # (positions, their normals)

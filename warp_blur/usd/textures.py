@@ -66,15 +66,20 @@ def read_image(resolved_path: str, color_space: str) -> list[np.ndarray] | None:
     return read_image_keyed(resolved_path, color_space)[1]
 
 
+def file_stamp(resolved_path: str) -> tuple[int, int] | None:
+    """(size, mtime in ns) of an image file (of the package a `pkg.usdz[inner]` path reads from),
+    None when it cannot be read: a rewritten file gets a new stamp."""
+    try:
+        st = os.stat(resolved_path.split("[", 1)[0])
+        return st.st_size, st.st_mtime_ns
+    except OSError:
+        return None
+
+
 def read_image_keyed(resolved_path: str, color_space: str) -> tuple[tuple, list[np.ndarray] | None]:
     """(cache key, read_image's result): the key (path, colour space, size and mtime) names the
     texels exactly, so a frame's texel atlas can be matched to an earlier frame's upload."""
-    try:
-        st = os.stat(resolved_path.split("[", 1)[0])
-        stamp = (st.st_size, st.st_mtime_ns)
-    except OSError:
-        stamp = None
-    key = (resolved_path, color_space, stamp)
+    key = (resolved_path, color_space, file_stamp(resolved_path))
     with _cache_lock:
         if key in _image_cache:
             return key, _image_cache[key]
@@ -162,6 +167,8 @@ class TextureSet:
     bindings: list = field(default_factory=list)      # BINDING_WIDTH floats
     sources: list = field(default_factory=list)       # what each texture's texels were read from
     _texture_index: dict = field(default_factory=dict)
+    _binding_index: dict = field(default_factory=dict)   # row -> its index: equal rows are one binding
+    _read: list = field(default_factory=list)            # (path, stamp) of every image file read or tried
     _size: int = 0
     device_arrays: dict = field(default_factory=dict)   # device -> uploaded arrays
 
@@ -170,6 +177,7 @@ class TextureSet:
         key = (resolved_path, color_space, wrap_s, wrap_t)
         if key not in self._texture_index:
             source, chain = read_image_keyed(resolved_path, color_space)
+            self._read.append((resolved_path, source[2]))
             if chain is None:
                 self._texture_index[key] = None
             else:
@@ -177,6 +185,7 @@ class TextureSet:
         return self._texture_index[key]
 
     def _append(self, chain: list[np.ndarray], wrap_s: str, wrap_t: str, source: tuple) -> int:
+        self.device_arrays.clear()   # uploaded before this texture: stale (a table kept across frames)
         first = len(self.levels)
         self.sources.append(source)
         for lev in chain:
@@ -195,6 +204,7 @@ class TextureSet:
         for path, tile in tiles:
             if 1001 <= tile < 1001 + UDIM_TILES:
                 source, chain = read_image_keyed(path, color_space)
+                self._read.append((path, source[2]))
                 if chain is not None:
                     chains[tile] = chain
                     sources[tile] = source
@@ -225,8 +235,19 @@ class TextureSet:
         area = abs(m[0] * m[3] - m[1] * m[2])
         row = [float(texture), float(CHANNEL.get(channel, 0)), *map(float, scale), *map(float, bias),
                1.0 if udim else 0.0, *map(float, m), 0.5 * float(np.log2(max(area, 1e-30)))]
-        self.bindings.append(row)
-        return len(self.bindings) - 1
+        # an equal row is the same binding (a table kept across frames adds its dome's again)
+        key = tuple(row)
+        if key not in self._binding_index:
+            self._binding_index[key] = len(self.bindings)
+            self.bindings.append(row)
+            self.device_arrays.clear()
+        return self._binding_index[key]
+
+    def files_changed(self) -> bool:
+        """True when an image file read into the set, or tried and not found, has been written
+        (or removed) since: a set kept across frames (material_cache.py) is then read again. (A
+        UDIM tile added beside the tiles found is not looked for.)"""
+        return any(stamp != file_stamp(path) for path, stamp in self._read)
 
     @property
     def empty(self) -> bool:
