@@ -98,3 +98,27 @@ def test_light_inputs_are_read_once_unless_they_vary(scene_path):
         for t, table in zip((0.6, 1.0, 1.4), tables):
             np.testing.assert_array_equal(table, light_table(fresh(), t, cam, UsdGeom.XformCache(t)))
         assert np.array_equal(tables[0], tables[2]) is not varies   # the ramp's intensity rises
+
+
+def test_a_still_lights_row_is_remade_when_the_camera_or_the_light_moves(scene_path):
+    """light_table keeps a light's last row while its inputs hold still and neither its transform
+    nor the camera's has changed: a changed camera matrix, or a light turned between calls, gets a
+    new row, equal to the table read afresh."""
+    import numpy as np
+    from pxr import Gf, Usd, UsdGeom
+    from scenes import lit_stage
+
+    from warp_blur.usd.lights import find_lights, light_table
+    stage = Usd.Stage.Open(lit_stage(scene_path()))
+    lights, _ = find_lights(stage)
+    turn = np.eye(4)
+    turn[:3, :3] = np.array(Gf.Matrix4d().SetRotate(Gf.Rotation(Gf.Vec3d(0, 1, 0), 30.0)).ExtractRotationMatrix())
+    cams = (np.eye(4), turn, np.eye(4))
+    tables = [light_table(lights, 1.0, cam, UsdGeom.XformCache(1.0)) for cam in cams]
+    for cam, table in zip(cams, tables):
+        np.testing.assert_array_equal(table, light_table(find_lights(stage)[0], 1.0, cam, UsdGeom.XformCache(1.0)))
+    assert not np.array_equal(tables[0], tables[1]) and np.array_equal(tables[0], tables[2])
+    UsdGeom.Xformable(lights[0].prim).AddRotateYOp(opSuffix="extra").Set(45.0)
+    moved = light_table(lights, 1.0, cams[0], UsdGeom.XformCache(1.0))
+    np.testing.assert_array_equal(moved, light_table(find_lights(stage)[0], 1.0, cams[0], UsdGeom.XformCache(1.0)))
+    assert not np.array_equal(moved, tables[0])

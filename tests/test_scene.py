@@ -29,7 +29,7 @@ def test_positions_agree_with_usdgeom(scene_path):
              translate_samples={0: (0, 0, 0), 2: (2, 1, -1)}, rotate_axis="X", rotate_samples={0: 0, 2: 45})
     stage.GetRootLayer().Save()
     stage, cam, scene = _scene(path)
-    for t in (0.5, 0.8, 1.3):
+    for t in (0.5, 0.8, 0.8, 1.3, 0.5):   # repeated times: the camera's inverse is kept while it holds
         snap = scene.snapshot(t)
         prim = stage.GetPrimAtPath("/World/Parent/Tri")
         l2w = UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t)
@@ -38,6 +38,7 @@ def test_positions_agree_with_usdgeom(scene_path):
         pts = UsdGeom.Mesh(prim).GetPointsAttr().Get(t)
         expect = np.array([list(w2c.Transform(l2w.Transform(Gf.Vec3d(p)))) for p in pts])
         np.testing.assert_allclose(snap.positions, expect, atol=1e-9)
+        np.testing.assert_allclose(snap.cam_from_world, np.array(w2c), atol=1e-12)
 
 
 def test_point_instancer_instances(scene_path):

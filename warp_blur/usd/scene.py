@@ -85,6 +85,7 @@ class Scene:
         self.materials = materials if materials is not None else MaterialTable(frame)
         self.units: list[GeomUnit] = []
         self._xf_caches: dict[float, UsdGeom.XformCache] = {}
+        self._cam_memo: tuple[bytes, np.ndarray] | None = None   # (camera-to-world bytes, its inverse)
         self._last_normals: tuple[np.ndarray, np.ndarray] | None = None   # (positions, their normals)
         self._skins = Skins()
         self._groups: list | None = None          # _small_unit_groups, found on first use
@@ -471,7 +472,10 @@ class Scene:
     def cam_from_world(self, time: float) -> np.ndarray:
         """(4, 4) float64 world -> camera matrix (row vectors) at a shutter time."""
         cam_to_world = np.array(self._xf_cache(time).GetLocalToWorldTransform(self.camera.GetPrim()), np.float64)
-        return camera_from_world(cam_to_world, str(self.camera.GetPath()), time)
+        key = cam_to_world.tobytes()
+        if self._cam_memo is None or self._cam_memo[0] != key:   # a camera that holds still: inverted once
+            self._cam_memo = (key, camera_from_world(cam_to_world, str(self.camera.GetPath()), time))
+        return self._cam_memo[1].copy()
 
     def vertex_normals(self, positions: np.ndarray) -> np.ndarray:
         """vertex_normals(positions, tri_vertices) (V, 3) float32; around the vertices that moved
