@@ -91,3 +91,18 @@ def test_the_framing_camera_placed_each_frame_keeps_the_table(scene_path):
     r.render(1.25)
     assert r.materials.reused == 1
     np.testing.assert_array_equal(first, _fresh(path, 0.75))
+
+
+def test_a_dropped_renderer_frees_its_table_without_a_garbage_collection(scene_path):
+    import gc
+    import weakref
+    path = emissive_quad_stage(scene_path())
+    r = _renderer(path)
+    r.render(1.0)
+    table = weakref.ref(r.materials.table_for(1.0))
+    gc.disable()
+    try:
+        del r
+        assert table() is None
+    finally:
+        gc.enable()

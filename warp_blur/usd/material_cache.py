@@ -51,6 +51,7 @@ class MaterialCache:
         self._table: MaterialTable | None = None
         self._static: bool | None = None   # None: not decided since the last edit
         self.reused = 0                      # frames given a kept table (tests read it)
+        # Tf holds a bound method's instance weakly: no cycle keeps a dropped Renderer's textures alive
         self._listener = Tf.Notice.Register(Usd.Notice.ObjectsChanged, self._changed, stage)
 
     def _changed(self, notice, _sender) -> None:
