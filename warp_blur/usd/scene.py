@@ -1,8 +1,10 @@
 """USD -> NumPy: static topology read once per frame, camera-space snapshots at any shutter time.
 
-Only this module, `stage.py`, `materials.py`, `lights.py` and `tessellate.py` import pxr. Positions are
-composed in float64 and made camera-relative (cam_from_local = local_to_world @ world_to_cam) before
-kernels see them as float32, so scenes far from the origin keep their precision.
+pxr is read under `usd/` (and for a prim's motion sample count in the motion plan, and by
+`tools/info.py`). Positions are composed in float64 and made camera-relative (cam_from_local =
+local_to_world @ world_to_cam) before kernels see them as float32, so scenes far from the origin
+keep their precision. Materials come from a table the Renderer may keep across frames
+(material_cache.py).
 """
 
 from __future__ import annotations
