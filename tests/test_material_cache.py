@@ -106,3 +106,16 @@ def test_a_dropped_renderer_frees_its_table_without_a_garbage_collection(scene_p
         assert table() is None
     finally:
         gc.enable()
+
+
+def test_threads_sharing_a_renderer_take_turns_and_get_what_one_thread_gets(scene_path):
+    from concurrent.futures import ThreadPoolExecutor
+    path = two_quads_stage(scene_path())
+    frames = [0.75, 1.0, 1.25, 0.75, 1.0, 1.25]
+    serial = {f: _fresh(path, f) for f in set(frames)}
+    r = _renderer(path)
+    with ThreadPoolExecutor(3) as pool:
+        results = list(pool.map(lambda f: r.render(f).rgba, frames))
+    for f, rgba in zip(frames, results):
+        np.testing.assert_array_equal(rgba, serial[f])
+    assert r.materials.reused == len(frames) - 1

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import os
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -93,6 +94,7 @@ class Renderer:
         # material tables kept across frames while the stage's shading cannot change; the framing
         # camera placed each frame is no such change
         self.materials = MaterialCache(self.stage, ignored=FRAMING_CAMERA_PATH)
+        self._lock = threading.Lock()
 
     def check_frame(self, frame: float) -> None:
         """Frames that are not finite, or outside the stage's authored time range, are a user error
@@ -109,7 +111,13 @@ class Renderer:
         return float(self.stage.GetStartTimeCode()) if self.stage.HasAuthoredTimeCodeRange() else 1.0
 
     def render(self, frame: float) -> RenderResult:
-        """Render one frame (a time code inside the stage's authored range)."""
+        """Render one frame (a time code inside the stage's authored range). Calls from several
+        threads take turns: a frame places the framing camera in the stage and may add to the
+        kept material table (each frame still uses every core)."""
+        with self._lock:
+            return self._render(frame)
+
+    def _render(self, frame: float) -> RenderResult:
         t_start = time.perf_counter()
         frame = float(frame)
         self.check_frame(frame)
