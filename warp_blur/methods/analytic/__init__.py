@@ -42,6 +42,11 @@ OCCLUSION_CULLING = True
 # resolve's 128 instants, the same intervals shaded), CULL_AT_INSTANTS the alternative.
 CULL_SLOTS = 16
 CULL_AT_INSTANTS = False
+# up to this many time bits (the draft's 32) the resolve's own instants are the culling slots: a
+# slot row that short costs little, and short intervals (small triangles passing) fill instants
+# where they never cover a whole span slot (session 50: large draft 1.99 -> 1.65 s, crossing,
+# rotation, deep_overlap -7 to -12%, near_plane even, demo +4%; at 128 bits instants cost more)
+INSTANT_CULL_BITS = 32
 # Samples that no moving entry reaches are resolved without storing intervals (shade_static_samples,
 # with the resolve's own weights; tests switch this off to compare against resolving stored intervals).
 DIRECT_STATIC_PIXELS = True
@@ -60,12 +65,12 @@ EXACT_CUTOUT_SLOTS = 256
 
 def cull_slots(bits: int) -> tuple[int, int]:
     """(G, whole) culling slots for a resolve of `bits` time bits (0: exact); G = 0 when off.
-    CULL_SLOTS span slots in every mode; with CULL_AT_INSTANTS, up to MAX_INSTANT_CULL_SLOTS bits use
-    the resolve's own instants instead (they cull more, but keeping them costs more than it
-    saves: culling's cost grows with its slots)."""
+    Up to INSTANT_CULL_BITS bits the resolve's own instants, else CULL_SLOTS span slots; with
+    CULL_AT_INSTANTS, up to MAX_INSTANT_CULL_SLOTS bits use the instants too (they cull more, but
+    at 128 keeping them costs more than it saves: culling's cost grows with its slots)."""
     if not OCCLUSION_CULLING:
         return 0, 0
-    if CULL_AT_INSTANTS and 0 < bits <= MAX_INSTANT_CULL_SLOTS:
+    if 0 < bits <= INSTANT_CULL_BITS or (CULL_AT_INSTANTS and 0 < bits <= MAX_INSTANT_CULL_SLOTS):
         return bits, 0
     return CULL_SLOTS, 1
 
@@ -118,12 +123,12 @@ class _IntervalPass:
         counts = wp.zeros(len(pixels_np), dtype=int, device=dev)
         fallbacks = self.fallbacks if count_fallbacks else BandCounter(dev)
         g, whole = cull_slots(ctx.settings.resolved_time_bits)
-        max_band = max(1, CULL_ROW_BYTES_BUDGET // (4 * (g + 1)))
+        max_band = max(1, CULL_ROW_BYTES_BUDGET // (4 * (g + 2)))
         with ctx.timed("fill"):
             launch_pixels(fill_intervals, len(pixels_np),
                           lambda first, n: [self.view, self.geo, self.moving_bins, self.sub, pixels, first, spans,
                                             self.static_hit, self.listed, g, whole, counts, fallbacks.band(), *arrays,
-                                            wp.empty((n, g + 1), dtype=float, device=dev)],
+                                            wp.empty((n, g + 2), dtype=float, device=dev)],
                           dev, ctx.settings.threads, max_band=max_band)
         return counts.numpy(), arrays
 

@@ -2,11 +2,14 @@
 
 A sample keeps, for G culling slots of the shutter, the nearest depth by which a stored interval
 already covers the slot (`occ[row, j]`, inf while uncovered; `occ[row, G]` is the farthest of
-them, so a sample whose every slot is covered can stop early; G = 0 switches culling off):
-- span slots (the default, any resolve: G = CULL_SLOTS in the package): slot j is the span
+them, so a sample whose every slot is covered can stop early, and `occ[row, G + 1]` how many are
+still uncovered, so the farthest is looked for only once none is: a row of 32 instants would
+otherwise be scanned at every first cover; G = 0 switches culling off):
+- span slots (above 32 bits and in exact mode: G = CULL_SLOTS in the package): slot j is the span
   [j/G, (j+1)/G], recorded only by an interval covering all of it (its farthest depth in the
   slot), so whatever lies behind it in the slot is hidden at every instant and every span there;
-- instant slots (bitmask resolve of B <= MAX_INSTANT_CULL_SLOTS bits, when asked for): G = B and slot
+- instant slots (a bitmask resolve of B <= 32 bits, the draft's; up to MAX_INSTANT_CULL_SLOTS when
+  asked for): G = B and slot
   j is the resolve's own instant (j + 0.5)/B, the depth there taken from the interval's depth
   line, exactly as the resolve reads it (culls more, costs more: a stored interval updates every
   slot instant it holds).
@@ -48,9 +51,14 @@ def touched_slots(t0: float, t1: float, g: int, whole: int) -> wp.vec2i:
 
 @wp.func
 def reset_slots(occ: wp.array2d(dtype=float), row: int, g: int, z: float):
-    """Every slot covered at depth z (the sample's nearest static surface, or inf)."""
+    """Every slot covered at depth z (the sample's nearest static surface, or inf: then all G are
+    uncovered, counted in occ[row, G + 1])."""
     for j in range(g + 1):
         occ[row, j] = z
+    uncovered = float(0.0)
+    if z == wp.inf:
+        uncovered = float(g)
+    occ[row, g + 1] = uncovered
 
 
 @wp.func
@@ -124,6 +132,7 @@ def record_interval(occ: wp.array2d(dtype=float), row: int, g: int, whole: int, 
         j1 = wp.clamp(int(wp.floor(t[1] * float(g))), 0, g)
     z_max = occ[row, g]
     at_max = int(0)
+    newly = int(0)   # slots this interval covers first (their farthest was inf)
     k = depth_slope(t, z)
     inv_g = 1.0 / float(g)
     for j in range(j0, j1):
@@ -139,8 +148,15 @@ def record_interval(occ: wp.array2d(dtype=float), row: int, g: int, whole: int, 
         old = occ[row, j]
         if zj < old:
             occ[row, j] = zj
-            if old >= z_max:
+            if old == wp.inf:
+                newly += 1
+            elif old >= z_max:
                 at_max = 1
+    if newly > 0:   # the farthest stays inf while a slot is uncovered: found once none is
+        left = occ[row, g + 1] - float(newly)
+        occ[row, g + 1] = left
+        if left <= 0.0:
+            at_max = 1
     if at_max != 0:
         far = float(-wp.inf)
         for j in range(g):
