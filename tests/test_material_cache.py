@@ -2,7 +2,7 @@
 nothing they were read from can change, and every frame looks as a fresh render of it does."""
 
 import numpy as np
-from pxr import Gf, Sdf, Usd, UsdShade
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade
 
 import warp_blur as wb
 from scenes import emissive_quad_stage, two_quads_stage
@@ -119,3 +119,20 @@ def test_threads_sharing_a_renderer_take_turns_and_get_what_one_thread_gets(scen
     for f, rgba in zip(frames, results):
         np.testing.assert_array_equal(rgba, serial[f])
     assert r.materials.reused == len(frames) - 1
+
+
+def test_an_animated_dome_input_keeps_no_table(scene_path):
+    """The kept table's TextureSet holds the dome's map and radiance (dome.dome_map): a dome whose
+    inputs change in time would add to it every frame, so the stage does not count as static."""
+    path = emissive_quad_stage(scene_path())
+    stage = Usd.Stage.Open(path)
+    assert shading_is_static(stage)
+    dome = stage.GetPrimAtPath("/World/Dome").GetAttribute("inputs:intensity")
+    dome.Set(1.0, Usd.TimeCode(0.5))
+    dome.Set(2.0, Usd.TimeCode(1.5))
+    assert not shading_is_static(stage)
+    stage.GetPrimAtPath("/World/Dome").GetAttribute("inputs:intensity").Clear()
+    turn = UsdGeom.Xformable(stage.GetPrimAtPath("/World/Dome")).AddRotateYOp()
+    turn.Set(10.0, Usd.TimeCode(0.5))
+    turn.Set(40.0, Usd.TimeCode(1.5))
+    assert shading_is_static(stage)          # a turning dome: its map is the same image

@@ -5,7 +5,8 @@ values, texture bindings): a third to a half of a frame's scene load on stages w
 materials. A table read at one frame is the table of every frame when no attribute of any shading
 prim (Material, NodeGraph, Shader) or of a prim their inputs connect to is time-varying, so such a
 stage's table is read once and reused (read again when an image file it read has been rewritten
-since); any other stage gets a fresh table each frame, as before.
+since); any other stage gets a fresh table each frame, as before. The table's TextureSet also
+holds the dome's map and radiance, so an animated dome input counts as well.
 An edit to the stage (a Renderer's stage is the caller's to change between frames) drops the
 kept table and the verdict, except edits under the `ignored` prim path (the framing camera that
 the renderer itself places each frame). One Renderer renders one frame at a time.
@@ -13,19 +14,27 @@ the renderer itself places each frame). One Renderer renders one frame at a time
 
 from __future__ import annotations
 
-from pxr import Sdf, Tf, Usd, UsdShade
+from pxr import Sdf, Tf, Usd, UsdLux, UsdShade
 
 from .materials import MaterialTable
 
 _SHADING_TYPES = (UsdShade.Material, UsdShade.NodeGraph, UsdShade.Shader)
+#: their texture and radiance go into the table's TextureSet too (dome.dome_map): their inputs count
+_DOME_TYPES = (UsdLux.DomeLight, UsdLux.DomeLight_1)
 
 
 def shading_is_static(stage: Usd.Stage) -> bool:
     """True when no attribute of a shading prim, or of a prim one of their attributes connects
-    to, may take different values at different times (time samples, value clips, splines)."""
+    to, may take different values at different times (time samples, value clips, splines), nor
+    any input of a dome light (its map and radiance are kept in the table's TextureSet)."""
     checked: set[Sdf.Path] = set()
-    pending: list[Usd.Prim] = [prim for prim in Usd.PrimRange.Stage(stage, Usd.TraverseInstanceProxies())
-                               if any(prim.IsA(kind) for kind in _SHADING_TYPES)]
+    pending: list[Usd.Prim] = []
+    for prim in Usd.PrimRange.Stage(stage, Usd.TraverseInstanceProxies()):
+        if any(prim.IsA(kind) for kind in _SHADING_TYPES):
+            pending.append(prim)
+        elif any(prim.IsA(kind) for kind in _DOME_TYPES):
+            if any(a.GetName().startswith("inputs:") and a.ValueMightBeTimeVarying() for a in prim.GetAttributes()):
+                return False
     while pending:
         prim = pending.pop()
         if prim.GetPath() in checked:
