@@ -95,6 +95,13 @@ def entry_corners(positions: np.ndarray, tri_vertices: np.ndarray, entry_tri: np
 BAND_SLABS = 4
 
 
+def pass_all_slabs(entries: int, slabs: int = 1) -> np.ndarray:
+    """(entries, slabs, 4) float32 slabs (0, 0, -1, 1): every pixel passes (no slab reject)."""
+    out = np.zeros((entries, slabs, 4), np.float32)
+    out[..., 2], out[..., 3] = -1.0, 1.0
+    return out
+
+
 def swept_bands(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarray, entry_tri: np.ndarray,
                 entry_k0: np.ndarray, entry_k1: np.ndarray, margin: float = 1.0) -> np.ndarray:
     """(E, BAND_SLABS, 4) float32 slabs (nx, ny, lo, hi): every pixel an entry covers over its span
@@ -109,8 +116,7 @@ def swept_bands(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarra
     shadow map) the result is one pass-all slab each, (E, 1, 4): there slabs cost more to compute
     and test than they save (accumulation's binning on `large` 0.42 -> 1.1 s for 16 instants)."""
     moving = np.nonzero(entry_k0 != entry_k1)[0]
-    out = np.zeros((len(entry_tri), BAND_SLABS if len(moving) else 1, 4), np.float32)
-    out[..., 2], out[..., 3] = -1.0, 1.0
+    out = pass_all_slabs(len(entry_tri), BAND_SLABS if len(moving) else 1)
     if len(moving) == 0:
         return out   # a sharp instant or a shadow map: the box test alone (slabs cost more than they save)
     pts = entry_corners(positions, tri_vertices, entry_tri[moving], entry_k0[moving], entry_k1[moving])
@@ -133,7 +139,7 @@ def swept_bands(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarra
         edge = r[b] - r[a]
         normals.append(np.stack([-edge[:, 1], edge[:, 0]], axis=1))
     travels = length[ok] > 2.0
-    block = out[:len(travels)].copy()                                  # (E_ok, S, 4), all pass-all
+    block = pass_all_slabs(len(travels), BAND_SLABS)                   # (E_ok, S, 4)
     for k, n in enumerate(normals):
         size = np.hypot(n[:, 0], n[:, 1])
         use = (size > 0.0) & np.isfinite(size) & (travels if k == 0 else True)

@@ -8,7 +8,7 @@ from collections import OrderedDict
 import numpy as np
 import warp as wp
 
-from .binning import TileBins
+from .binning import TileBins, pass_all_slabs
 from ..core.camera import Projection
 from ..core.reuse import reused_empty
 from ..kernels.kernel_types import Bins, Geometry, Shading, Textures, View
@@ -358,7 +358,7 @@ def make_bins(bins: TileBins, device: str) -> Bins:
     boxes = bins.entry_boxes if bins.entry_boxes is not None else np.zeros((0, 4), np.float32)
     b.entry_boxes = device_array(boxes.astype(np.float32), wp.vec4, device)
     bands = bins.entry_bands
-    if bands is None:   # no slab reject: one (0, 0, -1, 1) each passes every pixel
-        bands = np.tile(np.array([0.0, 0.0, -1.0, 1.0], np.float32), (len(boxes), 1, 1))
+    if bands is None:   # no slab reject: one pass-all slab each
+        bands = pass_all_slabs(len(boxes))
     b.entry_bands = device_array(bands.astype(np.float32), wp.vec4, device)   # (E, S) slabs
     return b
