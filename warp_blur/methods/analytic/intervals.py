@@ -28,7 +28,8 @@ from ...kernels.raster import add_pixel, box_rejects, pixel_tile
 from ...kernels.rays import intersect_triangle, static_entry_hit
 from .coverage import MAX_SPAN_PIECES, entry_edges, next_breakpoint, piece_covered
 from .occlusion import all_hidden, entry_hidden, interval_hidden, record_interval, reset_slots
-from .moving import Moving, depth_at, depth_range, entry_moving, eye_relative, in_range, plane_hit, sample_ray
+from .moving import (Moving, depth_at, depth_polynomials, depth_range, entry_moving, eye_relative, in_range, in_range_at,
+                     plane_hit, sample_ray)
 from .radiance import boundary_radiance, lerp_in_time, radiance_plan, sub_piece_time
 from .resolve import span_slots
 
@@ -157,18 +158,21 @@ def emit_clipped(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: wp
     wp.atomic_add(fallbacks, 0, 1)
     count = int(0)
     prev_s = s_a
-    prev_in = in_range(view, depth_at(m, o, d, s_a))
+    # the depth as a ratio of polynomials in s: each sample and bisection step costs a few
+    # multiplications instead of depth_at's cross product
+    num, den = depth_polynomials(m, o, d)
+    prev_in = in_range_at(view, num, den, s_a)
     start = s_a
     steps = clip_steps(geo.clip_bits, (s_b - s_a) / float(CLIP_SAMPLES) * (m.u1 - m.u0))
     for i in range(1, CLIP_SAMPLES + 1):
         s = s_a + (s_b - s_a) * float(i) / float(CLIP_SAMPLES)
-        now_in = in_range(view, depth_at(m, o, d, s))
+        now_in = in_range_at(view, num, den, s)
         if now_in != prev_in:
             lo = prev_s
             hi = s
             for _k in range(steps):
                 mid = 0.5 * (lo + hi)
-                if in_range(view, depth_at(m, o, d, mid)) == prev_in:
+                if in_range_at(view, num, den, mid) == prev_in:
                     lo = mid
                 else:
                     hi = mid

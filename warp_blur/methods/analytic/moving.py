@@ -77,6 +77,39 @@ def depth_at(m: Moving, o: wp.vec3, d: wp.vec3, s: float) -> float:
 
 
 @wp.func
+def depth_polynomials(m: Moving, o: wp.vec3, d: wp.vec3):
+    """(N, D): coefficients of 1, s, s², s³ of plane_depth's numerator N(s) = (a(s) - o) · n(s)
+    (a cubic) and denominator D(s) = d · n(s) (a quadratic; its 4th is 0), n(s) = (b - a) × (c - a)
+    quadratic in the entry time s, so that depth_at(m, o, d, s) = N(s) / D(s). Evaluating them
+    costs a fifth of depth_at: for the near/far crossings' many samples."""
+    a0 = m.a0 - o
+    da = m.a1 - m.a0
+    e1 = m.b0 - m.a0
+    de1 = (m.b1 - m.b0) - da
+    e2 = m.c0 - m.a0
+    de2 = (m.c1 - m.c0) - da
+    n0 = wp.cross(e1, e2)
+    n1 = wp.cross(e1, de2) + wp.cross(de1, e2)
+    n2 = wp.cross(de1, de2)
+    num = wp.vec4(wp.dot(a0, n0), wp.dot(a0, n1) + wp.dot(da, n0), wp.dot(a0, n2) + wp.dot(da, n1), wp.dot(da, n2))
+    den = wp.vec4(wp.dot(d, n0), wp.dot(d, n1), wp.dot(d, n2), 0.0)
+    return num, den
+
+
+@wp.func
+def in_range_at(view: View, num: wp.vec4, den: wp.vec4, s: float) -> bool:
+    """in_range of the depth N(s) / D(s) (depth_polynomials), without the division: a plane
+    parallel to the ray (D = 0) is out of range, as plane_depth's inf is."""
+    n = num[0] + s * (num[1] + s * (num[2] + s * num[3]))
+    dn = den[0] + s * (den[1] + s * den[2])
+    if dn > 0.0:
+        return n >= view.near * dn and n <= view.far * dn
+    if dn < 0.0:
+        return n <= view.near * dn and n >= view.far * dn
+    return False
+
+
+@wp.func
 def depth_range(m: Moving) -> wp.vec2:
     """(nearest, farthest) view depth of the triangle's six vertices: its hits over the span are
     convex combinations of them."""
