@@ -6,7 +6,7 @@ import pytest
 from pxr import Gf, Sdf, UsdGeom, Vt
 
 from warp_blur.core.errors import InvalidGeometryError
-from warp_blur.usd.normals import vertex_normals, vertex_normals_since
+from warp_blur.usd.normals import smooth_normals_for, vertex_normals
 from warp_blur.usd.scene import Scene
 from warp_blur.usd.stage import Shutter, choose_camera, open_stage
 
@@ -184,20 +184,38 @@ def test_messy_usd_references_payloads_instances_matrices(tmp_path, scene_path):
     assert not [w for w in log.take_warnings() if "Dust" in w]  # never repeated
 
 
-def test_normals_recomputed_around_moved_vertices_only_are_bit_identical():
-    """A mesh of 2000 random triangles over 600 vertices, 30 of them moved: recomputing only the
-    normals of vertices that share a triangle with a moved one equals recomputing all, exactly."""
+def _numpy_vertex_normals(positions: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """The oracle: area-weighted vertex normals by np.cross, np.bincount and np.linalg.norm."""
+    a, b, c = positions[tris[:, 0]], positions[tris[:, 1]], positions[tris[:, 2]]
+    fn = np.cross(b - a, c - a)
+    idx = tris.ravel()
+    n = np.stack([np.bincount(idx, weights=np.repeat(fn[:, k], 3), minlength=len(positions)) for k in range(3)],
+                 axis=1)
+    return (n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)).astype(np.float32)
+
+
+def test_smooth_normals_equal_numpys_bit_for_bit():
+    """Random meshes (degenerate triangles, repeated and unused vertices, scales from 1e-3 to 1e6):
+    the kernels' normals equal NumPy's exactly, so moving them to Warp changed no image."""
     rng = np.random.default_rng(7)
-    before = rng.normal(size=(600, 3))
-    tris = rng.integers(0, 600, (2000, 3)).astype(np.int32)
-    after = before.copy()
-    moved = rng.choice(600, 30, replace=False)
-    after[moved] += rng.normal(scale=0.1, size=(30, 3))
-    full = vertex_normals(after, tris)
-    since = vertex_normals_since(vertex_normals(before, tris), before, after, tris)
-    np.testing.assert_array_equal(since, full)
-    assert not np.array_equal(full, vertex_normals(before, tris))
-    assert vertex_normals_since(full, after, after, tris) is full   # nothing moved: nothing done
+    for trial in range(30):
+        v = int(rng.integers(1, 500))
+        tris = rng.integers(0, v, (int(rng.integers(0, 1500)), 3)).astype(np.int32)
+        positions = rng.normal(size=(v, 3)) * 10 ** rng.uniform(-3, 6) + rng.normal(size=3) * 10 ** rng.uniform(0, 6)
+        np.testing.assert_array_equal(vertex_normals(positions, tris), _numpy_vertex_normals(positions, tris))
+
+
+def test_smooth_normals_are_kept_per_topology():
+    """A topology seen again gets its kept corner lists; another one (same size) does not."""
+    rng = np.random.default_rng(8)
+    tris = rng.integers(0, 50, (80, 3)).astype(np.int32)
+    first = smooth_normals_for(tris, 50)
+    assert smooth_normals_for(tris.copy(), 50) is first
+    other = tris.copy()
+    other[3, 1] = (other[3, 1] + 1) % 50
+    assert smooth_normals_for(other, 50) is not first
+    positions = rng.normal(size=(50, 3))
+    np.testing.assert_array_equal(smooth_normals_for(other, 50)(positions), _numpy_vertex_normals(positions, other))
 
 
 @pytest.mark.parametrize("indices,positions", [([0, -1, 0], 3), ([0, 7, 0], 3), ([0, 0, 0], 2)])

@@ -23,7 +23,7 @@ from ..core.log import warn_once
 from .materials import CODE_CORNER_OPACITY, MaterialTable
 from .curves import curves_unit_fields
 from .points import derived_points_fn, points_unit_fields
-from .normals import authored_normals_fn, split_normals_fn, transform_normals, vertex_normals, vertex_normals_since
+from .normals import SmoothNormals, authored_normals_fn, smooth_normals_for, split_normals_fn, transform_normals
 from .subdivision import mesh_refinement, refined_surface_primvars, refined_triangles, screen_level, stage_level
 from .skinning import Skins, skinned_points_fn
 from .stage import Shutter
@@ -88,7 +88,7 @@ class Scene:
         self.units: list[GeomUnit] = []
         self._xf_caches: dict[float, UsdGeom.XformCache] = {}
         self._cam_memo: tuple[bytes, np.ndarray] | None = None   # (camera-to-world bytes, its inverse)
-        self._last_normals: tuple[np.ndarray, np.ndarray] | None = None   # (positions, their normals)
+        self._smooth_normals: SmoothNormals | None = None   # the triangles' corner lists (normals.py)
         self._skins = Skins()
         self._groups: list | None = None          # _small_unit_groups, found on first use
         self._unit_grouped = np.zeros(0, bool)
@@ -480,15 +480,10 @@ class Scene:
         return self._cam_memo[1].copy()
 
     def vertex_normals(self, positions: np.ndarray) -> np.ndarray:
-        """vertex_normals(positions, tri_vertices) (V, 3) float32; around the vertices that moved
-        since the previous call only (the rest of a mostly still scene keeps its normals)."""
-        last = self._last_normals
-        if last is not None and last[0].shape == positions.shape:
-            normals = vertex_normals_since(last[1], last[0], positions, self.tri_vertices)
-        else:
-            normals = vertex_normals(positions, self.tri_vertices)
-        self._last_normals = (positions.copy(), normals)
-        return normals
+        """(V, 3) float32 smooth vertex normals of the scene's triangles at positions (V, 3)."""
+        if self._smooth_normals is None or self._smooth_normals.num_vertices != len(positions):
+            self._smooth_normals = smooth_normals_for(self.tri_vertices, len(positions))
+        return self._smooth_normals(positions)
 
     def shading_normals(self, positions: np.ndarray, time: float) -> np.ndarray:
         """(V, 3) float32 camera-space shading normals at shutter time `time`: smooth vertex normals
