@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import warp as wp
 
-wp.config.log_level = wp.LOG_WARNING
+from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
 
 
 @wp.struct

@@ -18,6 +18,8 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
+
 
 @wp.func
 def det3(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d) -> wp.float64:

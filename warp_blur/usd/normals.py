@@ -21,6 +21,7 @@ import numpy as np
 import warp as wp
 from pxr import Usd, UsdGeom
 
+from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
 from ..core.log import warn_once
 
 HARD_EDGE_COS = 0.999
