@@ -214,7 +214,7 @@ class SmoothNormals:
 
     def __call__(self, positions: np.ndarray) -> np.ndarray:
         """(V, 3) float32 normals at positions (V, 3) float64."""
-        p = wp.array(np.ascontiguousarray(positions, np.float64), dtype=wp.vec3d, device="cpu")
+        p = wp.array(np.ascontiguousarray(positions, np.float64), dtype=wp.vec3d, device="cpu", copy=False)
         face = wp.empty(self.num_triangles, dtype=wp.vec3d, device="cpu")
         out = wp.empty(self.num_vertices, dtype=wp.vec3, device="cpu")
         if self.num_triangles:
@@ -245,6 +245,6 @@ def smooth_normals_for(tris: np.ndarray, num_vertices: int) -> SmoothNormals:
 
 
 def vertex_normals(positions: np.ndarray, tris: np.ndarray) -> np.ndarray:
-    """(V, 3) float32 area-weighted, normalised vertex normals of a triangle mesh (SmoothNormals;
-    a caller with one topology over many positions keeps a SmoothNormals instead)."""
-    return SmoothNormals(tris, len(positions))(positions)
+    """(V, 3) float32 area-weighted, normalised vertex normals of a triangle mesh (SmoothNormals,
+    its corner lists kept per topology: smooth_normals_for)."""
+    return smooth_normals_for(tris, len(positions))(positions)

@@ -23,7 +23,7 @@ from ..core.log import warn_once
 from .materials import CODE_CORNER_OPACITY, MaterialTable
 from .curves import curves_unit_fields
 from .points import derived_points_fn, points_unit_fields
-from .normals import SmoothNormals, authored_normals_fn, smooth_normals_for, split_normals_fn, transform_normals
+from .normals import authored_normals_fn, split_normals_fn, transform_normals, vertex_normals
 from .subdivision import mesh_refinement, refined_surface_primvars, refined_triangles, screen_level, stage_level
 from .skinning import Skins, skinned_points_fn
 from .stage import Shutter
@@ -88,7 +88,6 @@ class Scene:
         self.units: list[GeomUnit] = []
         self._xf_caches: dict[float, UsdGeom.XformCache] = {}
         self._cam_memo: tuple[bytes, np.ndarray] | None = None   # (camera-to-world bytes, its inverse)
-        self._smooth_normals: SmoothNormals | None = None   # the triangles' corner lists (normals.py)
         self._skins = Skins()
         self._groups: list | None = None          # _small_unit_groups, found on first use
         self._unit_grouped = np.zeros(0, bool)
@@ -481,9 +480,7 @@ class Scene:
 
     def vertex_normals(self, positions: np.ndarray) -> np.ndarray:
         """(V, 3) float32 smooth vertex normals of the scene's triangles at positions (V, 3)."""
-        if self._smooth_normals is None or self._smooth_normals.num_vertices != len(positions):
-            self._smooth_normals = smooth_normals_for(self.tri_vertices, len(positions))
-        return self._smooth_normals(positions)
+        return vertex_normals(positions, self.tri_vertices)
 
     def shading_normals(self, positions: np.ndarray, time: float) -> np.ndarray:
         """(V, 3) float32 camera-space shading normals at shutter time `time`: smooth vertex normals
