@@ -268,6 +268,28 @@ def test_occlusion_culling_changes_no_pixel(scene_path, monkeypatch, bits, insta
     np.testing.assert_array_equal(culled.rgba, full.rgba)
 
 
+@pytest.mark.parametrize("bits", [128, 32, 0])
+def test_entries_skipped_by_their_plane_depth_change_no_pixel(monkeypatch, bits):
+    """deep_overlap's quads turn and tilt in depth, so an entry's nearest vertex is far nearer than
+    where a ray meets it. Where its plane's depth along the ray is behind every culling slot it
+    reaches over its whole span, its coverage is never computed (occlusion.plane_hidden). The image
+    must be that of storing and resolving every interval (culling off), and many entries must have
+    been skipped. Exact mode sums its coverage event by event, so fewer stored intervals change
+    its rounding (~3e-6 here, with or without the skipping): equal there to 1e-5."""
+    import warp_blur.methods.analytic as analytic
+    kw = dict(frame=2, resolution=(128, 96), method="analytic", time_bits=bits, aovs=())
+    path = os.path.join(SCENES, "deep_overlap.usda")
+    culled = wb.render(path, **kw)
+    monkeypatch.setattr(analytic, "OCCLUSION_CULLING", False)
+    full = wb.render(path, **kw)
+    assert culled.stats["entries_skipped_by_depth"] > 2 * culled.stats["intervals"] / 3
+    assert full.stats["entries_skipped_by_depth"] == 0
+    if bits:
+        np.testing.assert_array_equal(culled.rgba, full.rgba)
+    else:
+        assert max_abs(culled.rgba, full.rgba) <= 1e-5
+
+
 def test_room_set_by_a_pilot_gives_the_same_image(scene_path, monkeypatch):
     """Many listed samples: a strided pilot fills first and sets the room for the rest from what
     its samples needed. Room only decides how often a sample is filled again, never the image."""

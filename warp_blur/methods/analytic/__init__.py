@@ -97,11 +97,12 @@ class _IntervalPass:
     def __init__(self, ctx: FrameContext, view, geo, shading, moving_bins, sub: wp.vec2, n_shade: int,
                  lights_static: int, static_hit: wp.array, listed: wp.array, rgba: wp.array, weight: float,
                  fallbacks: BandCounter, truncated: BandCounter, shaded: BandCounter, reused: BandCounter,
-                 budget: int) -> None:
+                 skipped: BandCounter, budget: int) -> None:
         self.ctx, self.view, self.geo, self.shading, self.moving_bins = ctx, view, geo, shading, moving_bins
         self.sub, self.n_shade, self.lights_static = sub, n_shade, lights_static
         self.static_hit, self.listed, self.rgba, self.weight = static_hit, listed, rgba, weight
         self.fallbacks, self.truncated, self.shaded, self.reused = fallbacks, truncated, shaded, reused
+        self.skipped = skipped
         self.total, self.max, self.peak_bytes, self.chunks, self.refilled = 0, 0, 0, 0, 0
         self.room = FIRST_FILL_ROOM
         self.budget = budget
@@ -121,14 +122,16 @@ class _IntervalPass:
         pixels = wp.array(pixels_np, dtype=int, device=dev)
         spans = wp.array(spans_np, dtype=wp.vec2i, device=dev)
         counts = wp.zeros(len(pixels_np), dtype=int, device=dev)
+        # a refill repeats its samples' walks: counted once
         fallbacks = self.fallbacks if count_fallbacks else BandCounter(dev)
+        skipped = self.skipped if count_fallbacks else BandCounter(dev)
         g, whole = cull_slots(ctx.settings.resolved_time_bits)
         max_band = max(1, CULL_ROW_BYTES_BUDGET // (4 * (g + 2)))
         with ctx.timed("fill"):
             launch_pixels(fill_intervals, len(pixels_np),
                           lambda first, n: [self.view, self.geo, self.moving_bins, self.sub, pixels, first, spans,
                                             self.static_hit, self.listed, g, whole, counts, fallbacks.band(), *arrays,
-                                            wp.empty((n, g + 2), dtype=float, device=dev)],
+                                            wp.empty((n, g + 2), dtype=float, device=dev), skipped.band()],
                           dev, ctx.settings.threads, max_band=max_band)
         return counts.numpy(), arrays
 
@@ -225,7 +228,8 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     geo.clip_bits = bits
     num_px = ctx.num_pixels
     rgba = wp.zeros((num_px, 4), dtype=float, device=dev)
-    fallbacks, truncated, shaded, reused = BandCounter(dev), BandCounter(dev), BandCounter(dev), BandCounter(dev)
+    fallbacks, truncated, shaded, reused, skipped = (BandCounter(dev), BandCounter(dev), BandCounter(dev),
+                                                     BandCounter(dev), BandCounter(dev))
     # int32 interval indices: chunks stay below 2**30 intervals
     budget = min(int(s.memory_budget_mb * 2**20 // BYTES_PER_INTERVAL), 2**30)
     subs = ctx.sub_pixel_offsets()
@@ -245,7 +249,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
         pixels_np = np.nonzero(listed.numpy())[0].astype(np.int32)
         listed_total += len(pixels_np)
         interval_pass = _IntervalPass(ctx, view, geo, shading, moving_bins, sub_v, n_shade, lights_static, static_hit,
-                                      listed, rgba, weight, fallbacks, truncated, shaded, reused, budget)
+                                      listed, rgba, weight, fallbacks, truncated, shaded, reused, skipped, budget)
         interval_pass.run(pixels_np, budget)
         passes.append(interval_pass)
         if direct and len(pixels_np) < num_px:
@@ -268,5 +272,6 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
         "interval_room": max(p.room for p in passes),
         "intervals_shaded": shaded.total(), "junction_ends_reused": reused.total(),
         "near_far_fallbacks": fallbacks.total(), "exact_truncations": truncated.total(),
+        "entries_skipped_by_depth": skipped.total(),
     })
     return rgba.numpy()

@@ -27,7 +27,7 @@ from ...kernels.kernel_types import Bins, Geometry, Shading, View
 from ...kernels.raster import add_pixel, box_rejects, pixel_tile
 from ...kernels.rays import intersect_triangle, static_entry_hit
 from .coverage import MAX_SPAN_PIECES, entry_edges, next_breakpoint, piece_covered
-from .occlusion import all_hidden, entry_hidden, interval_hidden, record_interval, reset_slots
+from .occlusion import all_hidden, behind, interval_hidden, plane_hidden, record_interval, reset_slots, slots_depth
 from .moving import (Moving, depth_at, depth_polynomials, depth_range, entry_moving, eye_relative, in_range, in_range_at,
                      plane_hit, sample_ray)
 from .radiance import boundary_radiance, lerp_in_time, radiance_plan, sub_piece_time
@@ -259,22 +259,27 @@ def may_show(view: View, m: Moving, z_static: float) -> bool:
 def moving_intervals(view: View, geo: Geometry, moving_bins: Bins, tile: int, start: int, sx: float, sy: float,
                      o: wp.vec3, d: wp.vec3, z_static: float, limit: int, base: int, iv_t: wp.array(dtype=wp.vec2),
                      iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int), fallbacks: wp.array(dtype=int),
-                     occ: wp.array2d(dtype=float), row: int, g: int, whole: int) -> int:
+                     occ: wp.array2d(dtype=float), row: int, g: int, whole: int, skipped: wp.array(dtype=int)) -> int:
     """Count, and store below `limit`, the intervals of the moving entries at a sample, from the
     tile's list position `start` on (first_reaching found none before it), skipping those
-    entirely behind the nearest static surface (depth z_static) or the culling slots. The list
+    entirely behind the nearest static surface (depth z_static) or the culling slots (by their
+    nearest vertex, or by their plane's depth along the ray: counted in skipped[0]). The list
     runs nearest first, so the walk ends at the first entry behind every slot."""
     n = int(0)
     for i in range(start, moving_bins.tile_offsets[tile + 1]):
         e = moving_bins.tile_entries[i]
         if not box_rejects(moving_bins, e, sx, sy):
             m = entry_moving(geo, e)
-            z_near = depth_range(m)[0]
-            if all_hidden(occ, row, g, z_near):
+            z_range = depth_range(m)
+            if all_hidden(occ, row, g, z_range[0]):
                 break
-            if may_show(view, m, z_static) and not entry_hidden(occ, row, g, whole, m.u0, m.u1, z_near):
-                n += entry_intervals(view, geo, e, m, o, d, sx, sy, limit, base + n, iv_t, iv_z, iv_e, fallbacks, occ, row,
-                                     g, whole)
+            z_slots = slots_depth(occ, row, g, whole, m.u0, m.u1, z_range[1])
+            if may_show(view, m, z_static) and not behind(z_range[0], z_slots):
+                if plane_hidden(m, o, d, z_range, z_slots):
+                    wp.atomic_add(skipped, 0, 1)
+                else:
+                    n += entry_intervals(view, geo, e, m, o, d, sx, sy, limit, base + n, iv_t, iv_z, iv_e, fallbacks, occ,
+                                         row, g, whole)
     return n
 
 
@@ -399,13 +404,15 @@ def fill_intervals(view: View, geo: Geometry, moving_bins: Bins, sub: wp.vec2, p
                    cull_slots: int, cull_whole: int,
                    # outputs
                    counts: wp.array(dtype=int), fallbacks: wp.array(dtype=int), iv_t: wp.array(dtype=wp.vec2),
-                   iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int), occ: wp.array2d(dtype=float)):
+                   iv_z: wp.array(dtype=wp.vec2), iv_e: wp.array(dtype=int), occ: wp.array2d(dtype=float),
+                   skipped: wp.array(dtype=int)):
     """Listed sample k = first + tid (pixel pixels[k]): counts[k] = its number of intervals (the
     moving entries' first, then its nearest static entry's), stored from spans[k][0] on in the
     chunk's arrays as far as they fit below spans[k][1], leaving out those hidden at every
     culling slot (occlusion.py: cull_slots G, cull_whole for span slots; row tid of occ, shape
-    (threads, G + 1), is the sample's scratch). One pass computes and stores; a sample whose count
-    exceeds its span is filled again with room for all (see _IntervalPass)."""
+    (threads, G + 1), is the sample's scratch; skipped[0] counts the entries plane_hidden skips).
+    One pass computes and stores; a sample whose count exceeds its span is filled again with room
+    for all (see _IntervalPass)."""
     row = wp.tid()
     k = first + row
     pix = pixels[k]
@@ -422,7 +429,7 @@ def fill_intervals(view: View, geo: Geometry, moving_bins: Bins, sub: wp.vec2, p
         z_static = static_entry_hit(geo, e_static, o, d)[1]
     reset_slots(occ, row, cull_slots, z_static)
     n = moving_intervals(view, geo, moving_bins, pixel_tile(view, px, py), listed[pix] - 1, sx, sy, o, d, z_static,
-                         limit, base, iv_t, iv_z, iv_e, fallbacks, occ, row, cull_slots, cull_whole)
+                         limit, base, iv_t, iv_z, iv_e, fallbacks, occ, row, cull_slots, cull_whole, skipped)
     if e_static >= 0:
         n += entry_intervals(view, geo, e_static, entry_moving(geo, e_static), o, d, sx, sy, limit, base + n, iv_t, iv_z,
                              iv_e, fallbacks, occ, row, cull_slots, cull_whole)
