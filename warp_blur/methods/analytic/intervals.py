@@ -274,7 +274,7 @@ def moving_intervals(view: View, geo: Geometry, moving_bins: Bins, tile: int, st
             if all_hidden(occ, row, g, z_range[0]):
                 break
             z_slots = slots_depth(occ, row, g, whole, m.u0, m.u1, z_range[1])
-            if may_show(view, m, z_static) and not behind(z_range[0], z_slots):
+            if may_show(view, m, z_static) and z_slots > -wp.inf and not behind(z_range[0], z_slots):
                 if plane_hidden(m, o, d, z_range, z_slots):
                     wp.atomic_add(skipped, 0, 1)
                 else:

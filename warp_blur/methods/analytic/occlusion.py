@@ -81,10 +81,11 @@ def all_hidden(occ: wp.array2d(dtype=float), row: int, g: int, z_near: float) ->
 def slots_depth(occ: wp.array2d(dtype=float), row: int, g: int, whole: int, u0: float, u1: float,
                 z_deep: float) -> float:
     """The farthest covered depth of the slots shutter time [u0, u1] reaches (inf when one of them
-    is uncovered, or culling is off): what lies behind it there lies behind every one of them (an
-    entry spanning [u0, u1] whose nearest vertex does is hidden at every slot it reaches). The scan
-    stops once the depth reaches z_deep (an entry's farthest vertex): nothing of that entry is
-    behind it then, and the depth so far says so."""
+    is uncovered, or culling is off; -inf when it reaches none: a span between two instant slots
+    has no bits, hidden wherever the resolve looks): what lies behind it there lies behind every
+    one of them (an entry spanning [u0, u1] whose nearest vertex does is hidden at every slot it
+    reaches). The scan stops once the depth reaches z_deep (an entry's farthest vertex): nothing of
+    that entry is behind it then, and the depth so far says so."""
     if g == 0:
         return wp.inf
     slots = touched_slots(u0, u1, g, whole)
