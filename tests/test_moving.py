@@ -5,7 +5,8 @@ import numpy as np
 import warp as wp
 
 from warp_blur.kernels.kernel_types import View
-from warp_blur.methods.analytic.moving import Moving, depth_at, depth_polynomials, in_range, in_range_at
+from moving_cases import case_triangle, random_moving_cases
+from warp_blur.methods.analytic.moving import depth_at, depth_polynomials, in_range, in_range_at
 
 
 @wp.kernel(enable_backward=False)
@@ -16,15 +17,7 @@ def _depths(p0: wp.array2d(dtype=wp.vec3), p1: wp.array2d(dtype=wp.vec3), origin
     """Case i: triangle p0[i] moving to p1[i], ray (origins[i], dirs[i]) at entry time times[i]:
     depth_at and N/D, and in_range by each."""
     i = wp.tid()
-    m = Moving()
-    m.a0 = p0[i, 0]
-    m.b0 = p0[i, 1]
-    m.c0 = p0[i, 2]
-    m.a1 = p1[i, 0]
-    m.b1 = p1[i, 1]
-    m.c1 = p1[i, 2]
-    m.u0 = 0.0
-    m.u1 = 1.0
+    m = case_triangle(p0, p1, i)
     o = origins[i]
     d = dirs[i]
     s = times[i]
@@ -53,19 +46,9 @@ def test_depth_polynomials_give_depth_at_and_its_range():
     orthographic-style rays from points off it): N(s)/D(s) equals depth_at to float32 rounding,
     and in_range_at agrees with in_range(depth_at) wherever the depth is not within rounding of
     the near or far plane (the crossings the fill bisects)."""
-    rng = np.random.default_rng(11)
     n = 4000
-    p0 = rng.uniform(-3, 3, (n, 3, 3)) + np.array([0.0, 0.0, -4.0])
-    p1 = p0 + rng.normal(0, 3.0, (n, 1, 3)) + rng.normal(0, 0.8, (n, 3, 3))   # moves and turns
-    times = rng.uniform(0, 1, n)
-    origins = np.zeros((n, 3))
-    origins[n // 2:, :2] = rng.uniform(-1, 1, (n - n // 2, 2))                  # half from off the eye
     # each ray through a random point of the triangle at a random time (covered cases, as the fill's)
-    w = rng.dirichlet((1, 1, 1), n)
-    at = p0 + times[:, None, None] * (p1 - p0)
-    target = np.einsum("nk,nkj->nj", w, at)
-    dirs = target - origins
-    dirs = dirs / -dirs[:, 2:3]
+    p0, p1, times, origins, dirs = random_moving_cases(np.random.default_rng(11), n, depth=4.0, move=3.0)
     ok = dirs[:, 2] < 0   # (all, by construction, unless the point is level with the eye)
     near, far = 1.0, 6.0
     plane, ratio, in_plane, in_ratio = _run(p0, p1, origins, np.where(ok[:, None], dirs, (0, 0, -1)), times, near,

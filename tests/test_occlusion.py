@@ -5,6 +5,7 @@ span only where the depths the fill would compute (moving.depth_at) all do."""
 import numpy as np
 import warp as wp
 
+from moving_cases import case_triangle, random_moving_cases
 from warp_blur.methods.analytic.moving import Moving, depth_at, depth_polynomials
 from warp_blur.methods.analytic.occlusion import plane_beyond
 
@@ -20,15 +21,7 @@ def _beyond(p0: wp.array2d(dtype=wp.vec3), p1: wp.array2d(dtype=wp.vec3), origin
     """Case i (triangle p0[i] moving to p1[i], ray (origins[i], dirs[i])): the smallest depth_at
     over samples + 1 entry times, and plane_beyond at each factor times it."""
     i = wp.tid()
-    m = Moving()
-    m.a0 = p0[i, 0]
-    m.b0 = p0[i, 1]
-    m.c0 = p0[i, 2]
-    m.a1 = p1[i, 0]
-    m.b1 = p1[i, 1]
-    m.c1 = p1[i, 2]
-    m.u0 = 0.0
-    m.u1 = 1.0
+    m = case_triangle(p0, p1, i)
     o = origins[i]
     d = dirs[i]
     lo = float(wp.inf)
@@ -41,24 +34,10 @@ def _beyond(p0: wp.array2d(dtype=wp.vec3), p1: wp.array2d(dtype=wp.vec3), origin
 
 
 def _cases(seed: int, n: int, degenerate: bool):
-    """Random triangles moving and turning in front of the eye, rays from the eye (half of them
-    from points off it, as orthographic rays start) through a random point of the triangle at a
-    random time; degenerate: the third vertex within 1e-4 of the line through the other two at
-    both ends of the span."""
-    rng = np.random.default_rng(seed)
-    p0 = rng.uniform(-3, 3, (n, 3, 3)) + np.array([0.0, 0.0, -8.0])
-    p1 = p0 + rng.normal(0, 2.0, (n, 1, 3)) + rng.normal(0, 0.8, (n, 3, 3))
-    if degenerate:
-        t = rng.uniform(0, 1, (n, 1))
-        p0[:, 2] = p0[:, 0] + t * (p0[:, 1] - p0[:, 0]) + rng.normal(0, 1e-4, (n, 3))
-        p1[:, 2] = p1[:, 0] + t * (p1[:, 1] - p1[:, 0]) + rng.normal(0, 1e-4, (n, 3))
-    times = rng.uniform(0, 1, n)
-    origins = np.zeros((n, 3))
-    origins[n // 2:, :2] = rng.uniform(-1, 1, (n - n // 2, 2))
-    w = rng.dirichlet((1, 1, 1), n)
-    target = np.einsum("nk,nkj->nj", w, p0 + times[:, None, None] * (p1 - p0))
-    dirs = target - origins
-    dirs = dirs / -dirs[:, 2:3]
+    """plane_beyond's claims (cases whose plane is in front of the eye at every sample, FACTORS)
+    over random_moving_cases around depth 8 (slivers where degenerate)."""
+    p0, p1, _times, origins, dirs = random_moving_cases(np.random.default_rng(seed), n, depth=8.0, move=2.0,
+                                                        degenerate=degenerate)
     beyond = wp.zeros((n, len(FACTORS)), dtype=int)
     smallest = wp.zeros(n, dtype=float)
     wp.launch(_beyond, dim=n, inputs=[wp.array(p0, dtype=wp.vec3), wp.array(p1, dtype=wp.vec3),
