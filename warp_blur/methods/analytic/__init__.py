@@ -109,8 +109,10 @@ class _IntervalPass:
         self._waiting: list[tuple[np.ndarray, np.ndarray, tuple]] = []   # resolves not run yet
         self._waiting_intervals = 0
 
-    def fill(self, pixels_np: np.ndarray, spans_np: np.ndarray, count_fallbacks: bool):
-        """Run the fill pass for samples pixels_np with (start, end) room spans_np: (counts, arrays)."""
+    def fill(self, pixels_np: np.ndarray, spans_np: np.ndarray, count_stats: bool):
+        """Run the fill pass for samples pixels_np with (start, end) room spans_np: (counts, arrays);
+        count_stats False (a refill, which repeats its samples' walks) leaves the pass's near/far and
+        skip counts as they are."""
         ctx, dev = self.ctx, self.ctx.device
         n_iv = max(int(spans_np[:, 1].max()) if len(spans_np) else 0, 1)
         if self._waiting and self._waiting_intervals + n_iv > self.budget:
@@ -122,9 +124,8 @@ class _IntervalPass:
         pixels = wp.array(pixels_np, dtype=int, device=dev)
         spans = wp.array(spans_np, dtype=wp.vec2i, device=dev)
         counts = wp.zeros(len(pixels_np), dtype=int, device=dev)
-        # a refill repeats its samples' walks: counted once
-        fallbacks = self.fallbacks if count_fallbacks else BandCounter(dev)
-        skipped = self.skipped if count_fallbacks else BandCounter(dev)
+        fallbacks = self.fallbacks if count_stats else BandCounter(dev)
+        skipped = self.skipped if count_stats else BandCounter(dev)
         g, whole = cull_slots(ctx.settings.resolved_time_bits)
         max_band = max(1, CULL_ROW_BYTES_BUDGET // (4 * (g + 2)))
         with ctx.timed("fill"):

@@ -273,13 +273,14 @@ def moving_intervals(view: View, geo: Geometry, moving_bins: Bins, tile: int, st
             z_range = depth_range(m)
             if all_hidden(occ, row, g, z_range[0]):
                 break
-            z_slots = slots_depth(occ, row, g, whole, m.u0, m.u1, z_range[1])
-            if may_show(view, m, z_static) and z_slots > -wp.inf and not behind(z_range[0], z_slots):
-                if plane_hidden(m, o, d, z_range, z_slots):
-                    wp.atomic_add(skipped, 0, 1)
-                else:
-                    n += entry_intervals(view, geo, e, m, o, d, sx, sy, limit, base + n, iv_t, iv_z, iv_e, fallbacks, occ,
-                                         row, g, whole)
+            if may_show(view, m, z_static):
+                z_slots = slots_depth(occ, row, g, whole, m.u0, m.u1, z_range[1])
+                if z_slots > -wp.inf and not behind(z_range[0], z_slots):
+                    if plane_hidden(m, o, d, z_range, z_slots):
+                        wp.atomic_add(skipped, 0, 1)
+                    else:
+                        n += entry_intervals(view, geo, e, m, o, d, sx, sy, limit, base + n, iv_t, iv_z, iv_e, fallbacks,
+                                             occ, row, g, whole)
     return n
 
 
