@@ -253,7 +253,7 @@ def test_occlusion_culling_changes_no_pixel(scene_path, monkeypatch, bits, insta
     """Leaving out the intervals that nearer ones hide at every culling slot (occlusion.py) must
     give the image of storing and resolving them all, on layers that cross in depth within the
     shutter, while storing fewer: far fewer with the resolve's own instants as slots (asked for,
-    or 32 bits, the draft's, where they are the default); the 16 span slots cull less here, where
+    or 32 bits, where they are the default); the 16 span slots cull less here, where
     all 24 layers meet at one depth mid-shutter."""
     instants = instants or bits == 32
     import warp_blur.methods.analytic as analytic

@@ -42,10 +42,12 @@ OCCLUSION_CULLING = True
 # resolve's 128 instants, the same intervals shaded), CULL_AT_INSTANTS the alternative.
 CULL_SLOTS = 16
 CULL_AT_INSTANTS = False
-# up to this many time bits (the draft's 32) the resolve's own instants are the culling slots: a
-# slot row that short costs little, and short intervals (small triangles passing) fill instants
-# where they never cover a whole span slot (session 50: large draft 1.99 -> 1.65 s, crossing,
-# rotation, deep_overlap -7 to -12%, near_plane even, demo +4%; at 128 bits instants cost more)
+# up to this many time bits (`--time-bits 32`, the draft's until session 53) the resolve's own
+# instants are the culling slots: a slot row that short costs little, and short intervals (small
+# triangles passing) fill instants where they never cover a whole span slot (session 50: large
+# draft 1.99 -> 1.65 s, crossing, rotation, deep_overlap -7 to -12%, near_plane even, demo +4%;
+# at 128 bits instants cost more; at 64, the draft's since session 53, large -4%, deep_overlap +4%,
+# near_plane +13%)
 INSTANT_CULL_BITS = 32
 # Samples that no moving entry reaches are resolved without storing intervals (shade_static_samples,
 # with the resolve's own weights; tests switch this off to compare against resolving stored intervals).

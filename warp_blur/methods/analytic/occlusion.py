@@ -8,7 +8,7 @@ otherwise be scanned at every first cover; G = 0 switches culling off):
 - span slots (above 32 bits and in exact mode: G = CULL_SLOTS in the package): slot j is the span
   [j/G, (j+1)/G], recorded only by an interval covering all of it (its farthest depth in the
   slot), so whatever lies behind it in the slot is hidden at every instant and every span there;
-- instant slots (a bitmask resolve of B <= 32 bits, the draft's; up to MAX_INSTANT_CULL_SLOTS when
+- instant slots (a bitmask resolve of B <= 32 bits; up to MAX_INSTANT_CULL_SLOTS when
   asked for): G = B and slot
   j is the resolve's own instant (j + 0.5)/B, the depth there taken from the interval's depth
   line, exactly as the resolve reads it (culls more, costs more: a stored interval updates every
