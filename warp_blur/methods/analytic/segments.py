@@ -112,6 +112,17 @@ def light_deviation(truth: np.ndarray, approx: np.ndarray) -> float:
     return worst
 
 
+#: bisection levels up to this many segments are checked at their quarter points, above it at
+#: their midpoints (plan_motion)
+QUARTER_CHECKED_SEGMENTS = 2
+
+
+def checks_per_segment(k: int) -> int:
+    """Parts a segment of a K-segment level is split into for checking (its inner knots are the
+    checked points): 4 (quarter points) up to QUARTER_CHECKED_SEGMENTS segments, else 2."""
+    return 4 if k <= QUARTER_CHECKED_SEGMENTS else 2
+
+
 def _hint(prim) -> int:
     try:
         return int(UsdGeom.MotionAPI(prim).ComputeNonlinearSampleCount())
@@ -123,11 +134,14 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
                 error_px: float = 0.25, time_error: float = 0.001, known: dict | None = None) -> MotionPlan:
     """Choose segments per prim by bisection of the shutter. shutter_time(u) -> USD time.
 
-    Snapshots are taken lazily: K segments are checked against the true positions at their
-    quarter points (the knots of 4K), so a frame costs about 4·K_max + 1 snapshots (a few more
-    probes decide which prims move at all; without the extra probes a prim turning a full circle
-    per half shutter would look still). `known` maps shutter fractions to snapshots already taken
-    (the static-frame probes), reused where a knot falls on one."""
+    Snapshots are taken lazily. One and two segments are checked against the true positions at
+    their quarter points (the knots of 4K: a wobble whose chord meets the path mid-segment is seen
+    there), more segments at their midpoints (the knots of 2K, where a chord is farthest from a
+    smooth path; the quarter points cost twice the snapshots and decided no prim differently on the
+    bench scenes), so a frame costs about 2·K_max + 1 snapshots (a few more probes decide which
+    prims move at all; without the extra probes a prim turning a full circle per half shutter would
+    look still). `known` maps shutter fractions to snapshots already taken (the static-frame
+    probes), reused where a knot falls on one."""
     instant = shutter_time(0.0) == shutter_time(1.0)
     m = 2 if instant else max(max_segments, 2)
     snaps: dict = {}
@@ -158,15 +172,16 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
                                          for k in probes[1:])
     max_err = 0.0
     k = 1
-    while (pending or (lights_pending and k <= MAX_LIGHT_SEGMENTS)) and 4 * k <= m:
-        stride = m // (4 * k)   # each of the K segments is checked at its quarter points (knots of 4K)
+    while (pending or (lights_pending and k <= MAX_LIGHT_SEGMENTS)) and checks_per_segment(k) * k <= m:
+        parts = checks_per_segment(k)   # each of the K segments is checked at the knots of parts·K
+        stride = m // (parts * k)
         if lights_pending and k <= MAX_LIGHT_SEGMENTS:
             dev_l = 0.0
             for j in range(k):
-                a, b = 4 * j * stride, (4 * j + 4) * stride
+                a, b = parts * j * stride, (parts * j + parts) * stride
                 la, lb = snap(a).lights, snap(b).lights
-                for q in (1, 2, 3):
-                    dev_l = max(dev_l, light_deviation(snap(a + q * stride).lights, la + (q / 4.0) * (lb - la)))
+                for q in range(1, parts):
+                    dev_l = max(dev_l, light_deviation(snap(a + q * stride).lights, la + (q / parts) * (lb - la)))
             if dev_l <= LIGHT_TOLERANCE:
                 light_k, lights_pending = k, False
         # every pending prim's vertices at once (numpy calls per check, not per prim and check)
@@ -176,10 +191,10 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
         idx = np.concatenate([np.arange(o, o + n) for o, n in spans]) if units else np.zeros(0, np.int64)
         dev_all = np.zeros(len(idx))
         for j in range(k):
-            a, b = 4 * j * stride, (4 * j + 4) * stride
+            a, b = parts * j * stride, (parts * j + parts) * stride
             pa, pb = snap(a).positions[idx], snap(b).positions[idx]
-            for q in (1, 2, 3):
-                approx = pa + (q / 4.0) * (pb - pa)
+            for q in range(1, parts):
+                approx = pa + (q / parts) * (pb - pa)
                 dev_all = np.maximum(dev_all, screen_distance_px(proj, snap(a + q * stride).positions[idx], approx))
         start = 0
         for ui, (o, n) in zip(units, spans):
