@@ -366,3 +366,53 @@ def test_small_prims_placed_together_agree_with_usdgeom_and_with_one_by_one(scen
         np.testing.assert_allclose(snap.positions, alone.positions, rtol=1e-15, atol=1e-15)
         assert np.array_equal(snap.tri_visible, alone.tri_visible)
     assert not scene.snapshot(1.3).tri_visible[scene.tri_unit == 4].any()    # Q4 hides at 1.2
+
+
+def test_still_prims_are_read_once_a_frame_and_placed_like_usdgeom(scene_path):
+    """A set's prims that hold still (no animated op on them or an ancestor, still points) are
+    grouped apart: their transforms and points are read at the first snapshot only, and their
+    camera-space block is kept while the camera holds still. Every snapshot must still place every
+    prim where UsdGeom puts it, with its authored visibility, whether the camera moves or not;
+    prims under an animated parent are not taken as still."""
+    from authoring import add_camera, add_quad, new_stage
+
+    from warp_blur.usd.stage import transform_may_vary
+    for camera_moves in (True, False):
+        path = scene_path()
+        stage = new_stage(path)
+        if camera_moves:
+            add_camera(stage, translate_samples={0: (0, 1, 10), 2: (1, 0, 8)})
+        else:
+            add_camera(stage, translate=(0, 1, 10))
+        for i in range(6):
+            add_quad(stage, f"/World/Set/S{i}", 0.3, 0.2, translate=(i * 0.4 - 1, 0.5, -i))
+        arm = UsdGeom.Xform.Define(stage, "/World/Arm")
+        arm.AddRotateZOp().Set(0.0, 0.0)
+        arm.GetPrim().GetAttribute("xformOp:rotateZ").Set(40.0, 2.0)
+        for i in range(3):
+            add_quad(stage, f"/World/Arm/A{i}", 0.3, 0.2, translate=(i * 0.5, -0.5, 0))
+        UsdGeom.Imageable(stage.GetPrimAtPath("/World/Set/S2")).GetVisibilityAttr().Set("inherited", 0.5)
+        UsdGeom.Imageable(stage.GetPrimAtPath("/World/Set/S2")).GetVisibilityAttr().Set("invisible", 1.2)
+        stage.GetRootLayer().Save()
+        stage, cam, scene = _scene(path)
+        memo = {}
+        varies = {u.path: transform_may_vary(u.prim, memo) for u in scene.units}
+        assert varies == {**{f"/World/Set/S{i}": False for i in range(6)}, **{f"/World/Arm/A{i}": True for i in range(3)}}
+        groups = {g.still: g for g in scene._small_unit_groups()}
+        assert sorted(scene.units[ui].path for ui in groups[True].units) == [f"/World/Set/S{i}" for i in range(6)]
+        assert sorted(scene.units[ui].path for ui in groups[False].units) == [f"/World/Arm/A{i}" for i in range(3)]
+        blocks = []
+        for t in (0.5, 0.9, 1.3, 0.7):
+            snap = scene.snapshot(t)
+            blocks.append(groups[True].last_placed[1])
+            w2c = UsdGeom.Xformable(cam.GetPrim()).ComputeLocalToWorldTransform(t).GetInverse()
+            for ui, u in enumerate(scene.units):
+                l2w = UsdGeom.Xformable(u.prim).ComputeLocalToWorldTransform(t)
+                pts = UsdGeom.Mesh(u.prim).GetPointsAttr().Get(t)
+                expect = np.array([list(w2c.Transform(l2w.Transform(Gf.Vec3d(p)))) for p in pts])
+                o = scene.unit_vertex_offsets[ui]
+                np.testing.assert_allclose(snap.positions[o:o + u.num_points], expect, atol=1e-9)
+                visible = UsdGeom.Imageable(u.prim).ComputeVisibility(t) != UsdGeom.Tokens.invisible
+                assert snap.tri_visible[scene.tri_unit == ui].all() == visible
+        # a still camera keeps the still group's block (one array); a moving one places it anew
+        assert all(b is blocks[0] for b in blocks) != camera_moves

@@ -83,6 +83,7 @@ def derived_points_fn(source_at: Callable[[float], np.ndarray],
         if last.get("source") is not source:
             last["source"], last["points"] = source, derive(source)
         return last["points"]
+    points_at.held = getattr(source_at, "held", False)   # a held source: one derived array too
     return points_at
 
 

@@ -29,7 +29,7 @@ from .skinning import Skins, skinned_points_fn
 from .stage import Shutter
 from .primvars import corner_primvar
 from .tessellate import is_closed_surface, tessellate_gprim, triangulate_corners
-from .units import GeomUnit, SmallUnitGroup, small_unit_groups
+from .units import GeomUnit, SmallUnitGroup, held_points, prim_transform_fn, small_unit_groups
 
 FLAG_DOUBLE_SIDED = 1
 FLAG_SMOOTH = 2
@@ -87,6 +87,7 @@ class Scene:
         self.materials = materials if materials is not None else MaterialTable(frame)
         self.units: list[GeomUnit] = []
         self._xf_caches: dict[float, UsdGeom.XformCache] = {}
+        self._transform_verdicts: dict = {}   # prim path -> its transform may vary over time
         self._cam_memo: tuple[bytes, np.ndarray] | None = None   # (camera-to-world bytes, its inverse)
         self._skins = Skins()
         self._groups: list | None = None          # _small_unit_groups, found on first use
@@ -216,6 +217,7 @@ class Scene:
                 cached["p"] = arr
             return arr
 
+        points_at.held = static   # one array at every time (SmallUnitGroup keeps it for the frame)
         return points_at
 
     def _valid_points_fn(self, prim: Usd.Prim, npts: int) -> Callable[[float], np.ndarray] | None:
@@ -238,9 +240,8 @@ class Scene:
                             self._subdivision_level)
 
     def _prim_transform_fn(self, prim: Usd.Prim):
-        def transforms_at(time: float, cache: UsdGeom.XformCache) -> np.ndarray:
-            return np.array(cache.GetLocalToWorldTransform(prim), np.float64)[None]
-        return transforms_at
+        """transforms_at of a prim (units.prim_transform_fn), the scene's verdicts shared."""
+        return prim_transform_fn(prim, self._transform_verdicts)
 
     def _common(self, prim: Usd.Prim, t: Usd.TimeCode) -> tuple[int, int, float]:
         gprim = UsdGeom.Gprim(prim)
@@ -321,7 +322,7 @@ class Scene:
         colors, uvs, opacity = self._surface_primvars(prim, t, material, tris, face_of_tri, corners)
         self.units.append(GeomUnit(
             path=str(prim.GetPath()), prim=prim, local_tris=tris, num_points=len(pts),
-            points_at=lambda time, p=pts: p, transforms_at=self._prim_transform_fn(prim), num_instances=1,
+            points_at=held_points(pts), transforms_at=self._prim_transform_fn(prim), num_instances=1,
             corner_colors=colors, corner_uvs=uvs, material=material, corner_opacity=opacity,
             flags=flags, blur_scale=blur, visibility_prims=[prim]))
 
@@ -405,6 +406,9 @@ class Scene:
 
     # ----------------------------------------------------------------------------- tables
     def _build_tables(self) -> None:
+        visibility_memo: dict = {}   # units under one parent ask about its visibility once
+        for u in self.units:
+            u.visibility_memo = visibility_memo
         tris, colors, uvs, mats, flags, unit_of_tri, objects, alphas = [], [], [], [], [], [], [], []
         self.unit_vertex_offsets = []
         v = 0

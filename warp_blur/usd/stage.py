@@ -292,18 +292,47 @@ def output_path_for_frame(pattern: str, frame: float, num_frames: int) -> str:
     return pattern[:m.start()] + text + pattern[m.end():]
 
 
-def visibility_varies(prims: list[Usd.Prim]) -> bool:
+def _up_the_namespace(prim: Usd.Prim, test, memo: dict) -> bool:
+    """True when test(p) holds for the prim or an ancestor; memo (path -> verdict) is filled for
+    every prim walked, so prims sharing ancestors walk each of them once."""
+    walked = []
+    p, verdict = prim, False
+    while p and p.IsValid() and not p.IsPseudoRoot():
+        known = memo.get(p.GetPath())
+        if known is not None:
+            verdict = known
+            break
+        walked.append(p.GetPath())
+        if test(p):
+            verdict = True
+            break
+        p = p.GetParent()
+    for path in walked:   # every prim walked below one that passes the test passes too
+        memo[path] = verdict
+    return verdict
+
+
+def _visibility_animated(p: Usd.Prim) -> bool:
+    return p.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(p).GetVisibilityAttr().ValueMightBeTimeVarying()
+
+
+def _transform_animated(p: Usd.Prim) -> bool:
+    return p.IsA(UsdGeom.Xformable) and UsdGeom.Xformable(p).TransformMightBeTimeVarying()
+
+
+def visibility_varies(prims: list[Usd.Prim], memo: dict | None = None) -> bool:
     """True when the visibility of any of `prims` or of an ancestor may change over time (an
-    animated `visibility` attribute); else every time's ComputeVisibility gives the same answer."""
-    seen = set()
-    for prim in prims:
-        p = prim
-        while p and p.IsValid() and not p.IsPseudoRoot() and p.GetPath() not in seen:
-            seen.add(p.GetPath())
-            if p.IsA(UsdGeom.Imageable) and UsdGeom.Imageable(p).GetVisibilityAttr().ValueMightBeTimeVarying():
-                return True
-            p = p.GetParent()
-    return False
+    animated `visibility` attribute); else every time's ComputeVisibility gives the same answer.
+    memo (path -> verdict, one dict for this question only) shares ancestors between calls."""
+    memo = {} if memo is None else memo
+    return any(_up_the_namespace(prim, _visibility_animated, memo) for prim in prims)
+
+
+def transform_may_vary(prim: Usd.Prim, memo: dict | None = None) -> bool:
+    """True when the prim's local-to-world transform may change over time: an xformOp of its own
+    or of an ancestor may take different values at different times (time samples, value clips,
+    splines). memo (path -> verdict, one dict for this question only) shares ancestors between calls."""
+    return _up_the_namespace(prim, _transform_animated, {} if memo is None else memo)
 
 
 def prims_visible(prims: list[Usd.Prim], time: float) -> bool:

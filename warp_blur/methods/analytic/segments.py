@@ -158,11 +158,21 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
     seg_of_unit = [0] * len(scene.units)
     pending: dict[int, np.ndarray] = {}
     probes = sorted({int(round(u * m)) for u in MOTION_PROBES}) if not instant else [0]
+    moves = np.zeros(len(scene.units), bool)
+    if not instant and len(scene.units):   # which prims move at the probes: one pass over all vertices
+        first = snap(probes[0]).positions
+        moved = np.zeros(len(first), bool)
+        for k in probes[1:]:
+            moved |= (snap(k).positions != first).any(axis=1)
+        starts = np.asarray(scene.unit_vertex_offsets[:len(scene.units)], np.int64)
+        ends = starts + np.array([u.num_points * u.num_instances for u in scene.units], np.int64)
+        counts = np.concatenate([[0], np.cumsum(moved)])
+        moves = counts[ends] > counts[starts]
     for ui, unit in enumerate(scene.units):
+        if not moves[ui]:
+            continue
         o, n = scene.unit_vertex_offsets[ui], unit.num_points * unit.num_instances
         ps = [pos(k, o, n) for k in probes]
-        if instant or all(np.array_equal(ps[0], q) for q in ps[1:]):
-            continue
         path_px = sum(screen_distance_px(proj, b, a) for a, b in zip(ps, ps[1:]))
         pending[ui] = np.maximum(np.minimum(error_px, time_error * path_px), 1e-3)
     # the lights (intensity, colour, transform) are a unit too: their table is read linearly
