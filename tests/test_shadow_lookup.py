@@ -5,7 +5,6 @@ replaces, at random points, spans and normals of a frame's still entries under a
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 import warp as wp
 from scenes import shadow_stage

@@ -25,6 +25,7 @@ from .output.exr_attributes import standard_attributes
 from .core.memory import check_frame_fits
 from .methods import get_method
 from .usd.material_cache import MaterialCache
+from .usd.unit_cache import UnitCache
 from .usd.scene import Scene
 from .core.settings import RenderSettings
 from .usd.stage import (choose_camera, choose_resolution, conform_policy, open_stage, projection_at,
@@ -94,6 +95,8 @@ class Renderer:
         # material tables kept across frames while the stage's shading cannot change; the framing
         # camera placed each frame is no such change
         self.materials = MaterialCache(self.stage, ignored=FRAMING_CAMERA_PATH)
+        # geometry units kept across frames where nothing they were read from can change
+        self.units = UnitCache(self.stage, ignored=FRAMING_CAMERA_PATH)
         self._lock = threading.Lock()
 
     def check_frame(self, frame: float) -> None:
@@ -130,7 +133,7 @@ class Renderer:
         t0 = time.perf_counter()
         progress.stage("load")
         scene = Scene(self.stage, self.camera, frame, shutter, skip_invalid=s.skip_invalid, proj=proj,
-                      materials=self.materials.table_for(frame))
+                      materials=self.materials.table_for(frame), kept_units=self.units)
         if not scene.units:
             raise StageError(f"the stage {self.scene_path} has no renderable geometry "
                              f"(meshes, implicit gprims or point instancers)")
@@ -161,7 +164,7 @@ class Renderer:
         total = time.perf_counter() - t_start
         stats = {
             "method": s.method, "frame": frame, "resolution": [w, h],
-            "triangles": scene.num_triangles, "prims": len(scene.units),
+            "triangles": scene.num_triangles, "prims": len(scene.units), "prims_reused": scene.units_reused,
             "time": {**{k: round(v, 6) for k, v in ctx.timings.items()}, "total": round(total, 6)},
             "triangles_per_second": scene.num_triangles / total if total > 0 else math.inf,
             **ctx.counters, "warnings": log.take_warnings(),

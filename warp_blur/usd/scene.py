@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from pxr import Sdf, Usd, UsdGeom, UsdShade
+from pxr import Usd, UsdGeom, UsdShade
 
 from ..core.affine import camera_from_world, invert_affine
 from ..core.errors import InvalidGeometryError
@@ -29,7 +29,8 @@ from .skinning import Skins, skinned_points_fn
 from .stage import Shutter
 from .primvars import corner_primvar
 from .tessellate import is_closed_surface, tessellate_gprim, triangulate_corners
-from .units import GeomUnit, SmallUnitGroup, held_points, prim_transform_fn, small_unit_groups
+from .units import (GeomUnit, SmallUnitGroup, held_points, prim_transform_fn, prototype_unit_name,
+                    small_unit_groups)
 
 FLAG_DOUBLE_SIDED = 1
 FLAG_SMOOTH = 2
@@ -37,14 +38,6 @@ FLAG_SMOOTH = 2
 _IMPLICIT = (UsdGeom.Cube, UsdGeom.Sphere, UsdGeom.Cylinder, UsdGeom.Cone, UsdGeom.Capsule, UsdGeom.Plane)
 _SILENT_TYPES = {"Xform", "Scope", "Camera", "", "Material", "Shader", "NodeGraph", "GeomSubset",
                  "RenderSettings", "RenderProduct", "RenderVar", "SkelRoot", "Skeleton", "SkelAnimation"}
-
-
-def prototype_unit_name(instancer: str, proto_path: Sdf.Path, sub_path: Sdf.Path) -> str:
-    """A readable name for a PointInstancer prototype's mesh: `/World/Ring (prototype Cone)`, or
-    `/World/Ring (prototype Cone, Body/Mesh)` for a prim inside the prototype."""
-    rel = str(sub_path.MakeRelativePath(proto_path)) if sub_path.HasPrefix(proto_path) else str(sub_path)
-    inside = "" if rel in (".", "") else f", {rel}"
-    return f"{instancer} (prototype {proto_path.name}{inside})"
 
 
 @dataclass
@@ -76,7 +69,8 @@ class Scene:
     """
 
     def __init__(self, stage: Usd.Stage, camera: UsdGeom.Camera, frame: float, shutter: Shutter,
-                 skip_invalid: bool = False, proj=None, materials: MaterialTable | None = None) -> None:
+                 skip_invalid: bool = False, proj=None, materials: MaterialTable | None = None,
+                 kept_units=None) -> None:
         self.stage = stage
         self.proj = proj   # the image's Projection when known: subdivision levels follow screen size
         self.camera = camera
@@ -85,6 +79,8 @@ class Scene:
         self.skip_invalid = skip_invalid
         # a table kept from an earlier frame where nothing it read can change (material_cache.py)
         self.materials = materials if materials is not None else MaterialTable(frame)
+        self.kept_units = kept_units   # a UnitCache: units kept from earlier frames (unit_cache.py)
+        self.units_reused = 0
         self.units: list[GeomUnit] = []
         self._xf_caches: dict[float, UsdGeom.XformCache] = {}
         self._transform_verdicts: dict = {}   # prim path -> its transform may vary over time
@@ -135,9 +131,9 @@ class Scene:
                 self._add_instancer(prim, t)
                 it.PruneChildren()
             elif prim.IsA(UsdGeom.Mesh):
-                self._add_mesh(prim, t)
+                self._read_or_reuse(prim, t, self._add_mesh)
             elif any(prim.IsA(c) for c in _IMPLICIT):
-                self._add_gprim(prim, t)
+                self._read_or_reuse(prim, t, self._add_gprim)
             elif prim.IsA(UsdGeom.Points):     # camera-facing discs
                 self._add_fields(points_unit_fields(self, prim, t))
             elif prim.IsA(UsdGeom.BasisCurves):  # camera-facing ribbons
@@ -145,6 +141,19 @@ class Scene:
             elif prim.IsA(UsdGeom.Gprim) or prim.GetTypeName() not in _SILENT_TYPES and not _is_light(prim):
                 warn_once(f"unsupported:{prim.GetPath()}",
                           f"{prim.GetPath()}: prim type {prim.GetTypeName()} is not rendered")
+
+    def _read_or_reuse(self, prim: Usd.Prim, t: Usd.TimeCode, read) -> None:
+        """The prim's unit as kept from an earlier frame (unit_cache.py), else read(prim, t) and
+        offer what it added to the cache."""
+        kept = self.kept_units.get(prim, self.materials) if self.kept_units is not None else None
+        if kept is not None:
+            self.units.append(kept)
+            self.units_reused += 1
+            return
+        n = len(self.units)
+        read(prim, t)
+        if self.kept_units is not None and len(self.units) == n + 1:
+            self.kept_units.keep(prim, self.units[-1], self.materials, skinned=self._skins.find(prim) is not None)
 
     def _mesh_topology(self, prim: Usd.Prim, t: Usd.TimeCode):
         mesh = UsdGeom.Mesh(prim)

@@ -10,9 +10,18 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-from pxr import Usd, UsdGeom
+from pxr import Sdf, Usd, UsdGeom
 
 from .stage import prims_visible, transform_may_vary, visibility_varies
+
+
+def prototype_unit_name(instancer: str, proto_path: Sdf.Path, sub_path: Sdf.Path) -> str:
+    """A readable name for a PointInstancer prototype's mesh: `/World/Ring (prototype Cone)`, or
+    `/World/Ring (prototype Cone, Body/Mesh)` for a prim inside the prototype."""
+    rel = str(sub_path.MakeRelativePath(proto_path)) if sub_path.HasPrefix(proto_path) else str(sub_path)
+    inside = "" if rel in (".", "") else f", {rel}"
+    return f"{instancer} (prototype {proto_path.name}{inside})"
+
 
 @dataclass
 class GeomUnit:
