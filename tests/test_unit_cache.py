@@ -84,17 +84,31 @@ def test_an_edit_between_frames_is_seen(scene_path):
             assert not np.array_equal(out.rgba, before.rgba)
 
 
-def test_a_stage_without_a_camera_keeps_its_units(tmp_path):
-    """The framing camera the renderer places in a camera-less stage each frame is no edit."""
+def test_a_stage_without_a_camera_keeps_its_units_and_rows(tmp_path):
+    """The framing camera the renderer places in a camera-less stage each frame is no edit. Where
+    every unit of a frame was kept, the per-triangle rows gathered from them are kept too (frame 3
+    on); an edit drops both: every frame equals a fresh render of the stage as it then is."""
     from authoring import add_quad, new_stage
     path = str(tmp_path / "nocam.usda")
-    stage = new_stage(path)
+    stage = new_stage(path, end=4)
     for i in range(3):
-        add_quad(stage, f"/World/P{i}", 0.5, 0.5, translate=(i, 0, 0))
-    add_quad(stage, "/World/Mover", 0.5, 0.5, translate_samples={0: (0, 1, 0), 2: (1, 1, 0)})
+        add_quad(stage, f"/World/P{i}", 0.5, 0.5, translate=(i, 0, 0), color=(0.3 * i, 0.4, 0.5))
+    add_quad(stage, "/World/Mover", 0.5, 0.5, translate_samples={0: (0, 1, 0), 4: (1, 1, 0)})
     stage.GetRootLayer().Save()
+    kw = dict(resolution=RES, shutter=(-0.25, 0.25), **KW)
     r = wb.Renderer(path, resolution=RES, settings=wb.RenderSettings(shutter=(-0.25, 0.25), **KW))
-    r.render(1.0)
-    out = r.render(2.0)
-    assert out.stats["prims_reused"] == 4
-    np.testing.assert_array_equal(out.rgba, wb.render(path, frame=2.0, resolution=RES, shutter=(-0.25, 0.25), **KW).rgba)
+    for frame in (1.0, 2.0, 3.0):
+        out = r.render(frame)
+        assert out.stats["prims_reused"] == (0 if frame == 1.0 else 4)
+        np.testing.assert_array_equal(out.rgba, wb.render(path, frame=frame, **kw).rgba)
+    assert r.units.rows_reused == 1   # frame 3
+    points = UsdGeom.Mesh(r.stage.GetPrimAtPath("/World/P1")).GetPointsAttr()
+    points.Set(Vt.Vec3fArray([Gf.Vec3f(-0.9, -0.5, 0), Gf.Vec3f(0.5, -0.5, 0), Gf.Vec3f(0.5, 0.9, 0),
+                              Gf.Vec3f(-0.5, 0.5, 0)]))
+    copy = str(tmp_path / "edited.usda")
+    r.stage.GetRootLayer().Export(copy)
+    for frame in (3.0, 4.0):
+        out = r.render(frame)
+        assert out.stats["prims_reused"] == (0 if frame == 3.0 else 4)
+        np.testing.assert_array_equal(out.rgba, wb.render(copy, frame=frame, **kw).rgba)
+    assert r.units.rows_reused == 1   # frame 3 read again, frame 4 gathered the rows anew

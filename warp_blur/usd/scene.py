@@ -28,8 +28,8 @@ from .subdivision import mesh_refinement, refined_surface_primvars, refined_tria
 from .skinning import Skins, skinned_points_fn
 from .stage import Shutter
 from .primvars import corner_primvar
-from .tessellate import is_closed_surface, tessellate_gprim, triangulate_corners
-from .units import (GeomUnit, SmallUnitGroup, held_points, prim_transform_fn, prototype_unit_name,
+from .tessellate import tessellate_gprim, triangulate_corners
+from .units import (GeomUnit, SmallUnitGroup, UnitRows, held_points, prim_transform_fn, prototype_unit_name,
                     small_unit_groups)
 
 FLAG_DOUBLE_SIDED = 1
@@ -418,43 +418,27 @@ class Scene:
         visibility_memo: dict = {}   # units under one parent ask about its visibility once
         for u in self.units:
             u.visibility_memo = visibility_memo
-        tris, colors, uvs, mats, flags, unit_of_tri, objects, alphas = [], [], [], [], [], [], [], []
-        self.unit_vertex_offsets = []
-        v = 0
-        num_objects = 0
-        for ui, u in enumerate(self.units):
-            self.unit_vertex_offsets.append(v)
-            for i in range(u.num_instances):
-                tris.append(u.local_tris + v + i * u.num_points)
-            n = len(u.local_tris) * u.num_instances
-            colors.append(np.tile(u.corner_colors.reshape(-1, 3), (u.num_instances, 1)))
-            unit_uvs = u.corner_uvs if u.corner_uvs is not None else np.zeros((len(u.local_tris), 3, 2), np.float32)
-            uvs.append(np.tile(unit_uvs.reshape(-1, 2), (u.num_instances, 1)))
-            mats.append(np.tile(u.tri_materials, u.num_instances).astype(np.int32) if u.tri_materials is not None
-                        else np.full(n, u.material, np.int32))
-            flags.append(np.full(n, u.flags, np.int32))
-            alphas.append(np.tile(u.corner_opacity, (u.num_instances, 1)) if u.corner_opacity is not None
-                          else np.full((n, 3), np.nan, np.float32))
-            unit_of_tri.append(np.full(n, ui, np.int32))
-            objects.append(np.repeat(np.arange(u.num_instances), len(u.local_tris)) + num_objects)
-            num_objects += u.num_instances
-            v += u.num_points * u.num_instances
-        self.num_vertices = v
-        cat = lambda a, shape, dt: np.concatenate(a).astype(dt) if a else np.zeros(shape, dt)  # noqa: E731
-        self.tri_vertices = cat(tris, (0, 3), np.int32)
-        self.corner_colors = cat(colors, (0, 3), np.float32)   # (3T, 3) corner 3t + k of triangle t
-        self.corner_uvs = cat(uvs, (0, 2), np.float32)         # (3T, 2)
-        self.textured = any(u.corner_uvs is not None for u in self.units)
-        self.tri_material = cat(mats, (0,), np.int32)
-        self.tri_flags = cat(flags, (0,), np.int32)
-        self.tri_unit = cat(unit_of_tri, (0,), np.int32)
-        self.tri_object = cat(objects, (0,), np.int32)   # (T,) prim instance of each triangle
+        rows = None
+        if self.kept_units is not None and self.units_reused == len(self.units):
+            rows = self.kept_units.rows_for(self.units)   # every unit kept: their rows too
+        if rows is None:
+            rows = UnitRows.of(self.units, self.frame)
+            if self.kept_units is not None and self.units_reused == len(self.units):
+                self.kept_units.keep_rows(self.units, rows)
+        self.unit_vertex_offsets, self.num_vertices = rows.vertex_offsets, rows.num_vertices
+        self.tri_vertices = rows.tri_vertices
+        self.corner_colors = rows.corner_colors   # (3T, 3) corner 3t + k of triangle t
+        self.corner_uvs = rows.corner_uvs         # (3T, 2)
+        self.textured = rows.textured
+        self.tri_material, self.tri_flags = rows.tri_material, rows.tri_flags
+        self.tri_unit = rows.tri_unit
+        self.tri_object = rows.tri_object   # (T,) prim instance of each triangle
         self.material_table = self.materials.array()
         cut = self.materials.cutouts()
         # (T, 3) opacity test per triangle (kernels/cutout.py), or None when every material is opaque;
         # (T,) triangles of fractional opacity (present at a fraction of each pixel's time samples);
         # (T, 3) corner opacities from a primvar (displayOpacity) where a material reads one, else 1
-        alpha = cat(alphas, (0, 3), np.float32)
+        alpha = rows.corner_alpha
         tri_cut = cut[self.tri_material] if len(self.tri_material) else np.zeros((0, 3), np.float32)
         self.tri_fractional = self.materials.fractional()[self.tri_material] if len(self.tri_material) \
             else np.zeros(0, bool)
@@ -472,8 +456,7 @@ class Scene:
         self.any_smooth = bool((self.tri_flags & FLAG_SMOOTH).any())
         # (T,) triangles of closed, opaque surfaces (raster/culling.py drops their hidden back faces)
         opaque = tri_cut[:, 0] == -1 if len(tri_cut) else np.zeros(0, bool)
-        closed_unit = np.array([is_closed_surface(u.local_tris, u.points_at(self.frame)) for u in self.units], bool)
-        self.tri_closed = closed_unit[self.tri_unit] & opaque if len(self.tri_unit) else np.zeros(0, bool)
+        self.tri_closed = rows.closed_unit[self.tri_unit] & opaque if len(self.tri_unit) else np.zeros(0, bool)
         if self.tri_closed.any():
             unit_open = np.bincount(self.tri_unit[~self.tri_closed], minlength=len(self.units)) > 0
             self.tri_closed &= ~unit_open[self.tri_unit]     # one see-through triangle opens its prim

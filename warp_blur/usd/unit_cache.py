@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from pxr import Sdf, Tf, Usd, UsdGeom
 
-from .units import GeomUnit
+from .units import GeomUnit, UnitRows
 
 #: attributes a unit reads by time (its points function is the points' reader only for still
 #: points: an animated `points` makes the prim unkeepable below)
@@ -72,7 +72,9 @@ class UnitCache:
         self._ignored = Sdf.Path(ignored) if ignored else None
         self._units: dict[Sdf.Path, tuple[GeomUnit, object]] = {}
         self._verdicts: dict[Sdf.Path, bool] = {}
-        self.reused = 0   # units given again since the Renderer was made (tests read it)
+        self._rows: tuple[tuple[GeomUnit, ...], UnitRows] | None = None   # (units, their rows)
+        self.reused = 0        # units given again since the Renderer was made (tests read it)
+        self.rows_reused = 0   # frames given kept rows (tests read it)
         # Tf holds a bound method's instance weakly: no cycle keeps a dropped Renderer's units alive
         self._listener = Tf.Notice.Register(Usd.Notice.ObjectsChanged, self._changed, stage)
 
@@ -82,6 +84,7 @@ class UnitCache:
             return
         self._units.clear()
         self._verdicts.clear()
+        self._rows = None
 
     def get(self, prim: Usd.Prim, table) -> GeomUnit | None:
         """The unit kept for `prim` when it was read against `table` (the frame's material table)."""
@@ -102,3 +105,17 @@ class UnitCache:
             verdict = self._verdicts[path] = keepable(prim)
         if verdict:
             self._units[path] = (unit, table)
+
+    def rows_for(self, units: list[GeomUnit]) -> UnitRows | None:
+        """The rows kept for exactly these units, the same objects in this order (keep_rows), else None."""
+        if self._rows is None or len(self._rows[0]) != len(units):
+            return None
+        if not all(a is b for a, b in zip(self._rows[0], units)):
+            return None
+        self.rows_reused += 1
+        return self._rows[1]
+
+    def keep_rows(self, units: list[GeomUnit], rows: UnitRows) -> None:
+        """Keep the rows gathered from `units`, every one of them a kept unit (held by reference:
+        the key is the units themselves)."""
+        self._rows = (tuple(units), rows.freeze())

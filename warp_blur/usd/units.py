@@ -87,6 +87,65 @@ def _held(fn) -> bool:
     return bool(getattr(fn, "held", False))
 
 
+@dataclass
+class UnitRows:
+    """The scene's units gathered into per-triangle rows (T triangles, V vertices), in unit order.
+    Kept across frames with the units when every unit of a frame was kept (unit_cache.py): the
+    arrays are read-only."""
+
+    vertex_offsets: list[int]     # each unit's first row in the vertex array
+    num_vertices: int
+    tri_vertices: np.ndarray      # (T, 3) int32
+    corner_colors: np.ndarray     # (3T, 3) float32, corner 3t + k of triangle t
+    corner_uvs: np.ndarray        # (3T, 2) float32 (zeros where a unit has none)
+    textured: bool                # some unit has texture coordinates
+    tri_material: np.ndarray      # (T,) int32
+    tri_flags: np.ndarray         # (T,) int32
+    tri_unit: np.ndarray          # (T,) int32
+    tri_object: np.ndarray        # (T,) int32 prim instance of each triangle
+    corner_alpha: np.ndarray      # (T, 3) float32 opacity primvar at each corner, NaN where none is read
+    closed_unit: np.ndarray       # (U,) bool: the unit's surface is closed (tessellate.is_closed_surface)
+
+    @staticmethod
+    def of(units: list[GeomUnit], frame: float) -> "UnitRows":
+        """Gather `units` (closedness judged from their points at USD time `frame`)."""
+        from .tessellate import is_closed_surface
+        tris, colors, uvs, mats, flags, unit_of_tri, objects, alphas = [], [], [], [], [], [], [], []
+        offsets = []
+        v = 0
+        num_objects = 0
+        for ui, u in enumerate(units):
+            offsets.append(v)
+            for i in range(u.num_instances):
+                tris.append(u.local_tris + v + i * u.num_points)
+            n = len(u.local_tris) * u.num_instances
+            colors.append(np.tile(u.corner_colors.reshape(-1, 3), (u.num_instances, 1)))
+            unit_uvs = u.corner_uvs if u.corner_uvs is not None else np.zeros((len(u.local_tris), 3, 2), np.float32)
+            uvs.append(np.tile(unit_uvs.reshape(-1, 2), (u.num_instances, 1)))
+            mats.append(np.tile(u.tri_materials, u.num_instances).astype(np.int32) if u.tri_materials is not None
+                        else np.full(n, u.material, np.int32))
+            flags.append(np.full(n, u.flags, np.int32))
+            alphas.append(np.tile(u.corner_opacity, (u.num_instances, 1)) if u.corner_opacity is not None
+                          else np.full((n, 3), np.nan, np.float32))
+            unit_of_tri.append(np.full(n, ui, np.int32))
+            objects.append(np.repeat(np.arange(u.num_instances), len(u.local_tris)) + num_objects)
+            num_objects += u.num_instances
+            v += u.num_points * u.num_instances
+        cat = lambda a, shape, dt: np.concatenate(a).astype(dt) if a else np.zeros(shape, dt)  # noqa: E731
+        closed = np.array([is_closed_surface(u.local_tris, u.points_at(frame)) for u in units], bool)
+        return UnitRows(offsets, v, cat(tris, (0, 3), np.int32), cat(colors, (0, 3), np.float32),
+                        cat(uvs, (0, 2), np.float32), any(u.corner_uvs is not None for u in units),
+                        cat(mats, (0,), np.int32), cat(flags, (0,), np.int32), cat(unit_of_tri, (0,), np.int32),
+                        cat(objects, (0,), np.int32), cat(alphas, (0, 3), np.float32), closed)
+
+    def freeze(self) -> "UnitRows":
+        """Make the arrays read-only (rows kept across frames are shared by every frame's scene)."""
+        for value in vars(self).values():
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+        return self
+
+
 #: prims with at most this many points (and one instance) are placed together
 SMALL_UNIT_POINTS = 256
 
