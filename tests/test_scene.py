@@ -324,6 +324,22 @@ def test_hard_edged_face_varying_normals_shade_each_side_with_its_own(scene_path
     assert len(np.unique(np.round(snap.positions, 9), axis=0)) == 6
 
 
+def _assert_placed_like_usdgeom(scene, cam, snap, t):
+    """Every mesh unit of `scene` (frame 1) in snapshot `snap` at shutter time t: its points where
+    UsdGeom puts them at its own motion blur scale's time, seen from the camera at t, and its
+    visibility as UsdGeom computes it."""
+    w2c = UsdGeom.Xformable(cam.GetPrim()).ComputeLocalToWorldTransform(t).GetInverse()
+    for ui, u in enumerate(scene.units):
+        t_prim = 1.0 + (t - 1.0) * u.blur_scale
+        l2w = UsdGeom.Xformable(u.prim).ComputeLocalToWorldTransform(t_prim)
+        pts = UsdGeom.Mesh(u.prim).GetPointsAttr().Get(t_prim)
+        expect = np.array([list(w2c.Transform(l2w.Transform(Gf.Vec3d(p)))) for p in pts])
+        o = scene.unit_vertex_offsets[ui]
+        np.testing.assert_allclose(snap.positions[o:o + u.num_points], expect, atol=1e-9)
+        visible = UsdGeom.Imageable(u.prim).ComputeVisibility(t_prim) != UsdGeom.Tokens.invisible
+        assert snap.tri_visible[scene.tri_unit == ui].all() == visible
+
+
 def test_small_prims_placed_together_agree_with_usdgeom_and_with_one_by_one(scene_path, monkeypatch):
     """Scene.snapshot places many small prims in one batch (usd/units.py): each prim's points as
     UsdGeom transforms them (at its own motion blur scale's time), its visibility as authored, and
@@ -350,16 +366,7 @@ def test_small_prims_placed_together_agree_with_usdgeom_and_with_one_by_one(scen
     assert sorted(len(g.units) for g in groups) == [4, 8]   # blur scales 0.5 and 1
     for t in (0.5, 0.9, 1.3):
         snap = scene.snapshot(t)
-        w2c = UsdGeom.Xformable(cam.GetPrim()).ComputeLocalToWorldTransform(t).GetInverse()
-        for ui, u in enumerate(scene.units):
-            t_prim = 1.0 + (t - 1.0) * u.blur_scale
-            l2w = UsdGeom.Xformable(u.prim).ComputeLocalToWorldTransform(t_prim)
-            pts = UsdGeom.Mesh(u.prim).GetPointsAttr().Get(t_prim)
-            expect = np.array([list(w2c.Transform(l2w.Transform(Gf.Vec3d(p)))) for p in pts])
-            o = scene.unit_vertex_offsets[ui]
-            np.testing.assert_allclose(snap.positions[o:o + u.num_points], expect, atol=1e-9)
-            visible = UsdGeom.Imageable(u.prim).ComputeVisibility(t_prim) != UsdGeom.Tokens.invisible
-            assert snap.tri_visible[scene.tri_unit == ui].all() == visible
+        _assert_placed_like_usdgeom(scene, cam, snap, t)
         monkeypatch.setattr(units, "SMALL_UNIT_POINTS", 0)
         alone = Scene(stage, cam, 1.0, Shutter(0.5, 1.5)).snapshot(t)
         monkeypatch.undo()
@@ -405,14 +412,6 @@ def test_still_prims_are_read_once_a_frame_and_placed_like_usdgeom(scene_path):
         for t in (0.5, 0.9, 1.3, 0.7):
             snap = scene.snapshot(t)
             blocks.append(groups[True].last_placed[1])
-            w2c = UsdGeom.Xformable(cam.GetPrim()).ComputeLocalToWorldTransform(t).GetInverse()
-            for ui, u in enumerate(scene.units):
-                l2w = UsdGeom.Xformable(u.prim).ComputeLocalToWorldTransform(t)
-                pts = UsdGeom.Mesh(u.prim).GetPointsAttr().Get(t)
-                expect = np.array([list(w2c.Transform(l2w.Transform(Gf.Vec3d(p)))) for p in pts])
-                o = scene.unit_vertex_offsets[ui]
-                np.testing.assert_allclose(snap.positions[o:o + u.num_points], expect, atol=1e-9)
-                visible = UsdGeom.Imageable(u.prim).ComputeVisibility(t) != UsdGeom.Tokens.invisible
-                assert snap.tri_visible[scene.tri_unit == ui].all() == visible
+            _assert_placed_like_usdgeom(scene, cam, snap, t)
         # a still camera keeps the still group's block (one array); a moving one places it anew
         assert all(b is blocks[0] for b in blocks) != camera_moves
