@@ -112,3 +112,28 @@ def test_a_stage_without_a_camera_keeps_its_units_and_rows(tmp_path):
         assert out.stats["prims_reused"] == (0 if frame == 3.0 else 4)
         np.testing.assert_array_equal(out.rgba, wb.render(copy, frame=frame, **kw).rgba)
     assert r.units.rows_reused == 1   # frame 3 read again, frame 4 gathered the rows anew
+
+
+def test_a_subdivision_mesh_is_kept_per_level(scene_path):
+    """A Catmull-Clark mesh is read at the level its size on screen needs: a camera dollying in
+    asks for more levels over the frames. Its unit is kept while the level holds and read again
+    when it changes; every frame equals a fresh read."""
+    from authoring import add_camera, add_mesh, new_stage
+    path = scene_path()
+    stage = new_stage(path, end=6)
+    add_camera(stage, translate_samples={0: (0, 0, 60), 6: (0, 0, 4)}, shutter=(-0.25, 0.25))
+    cube = [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1), (-1, -1, 1), (1, -1, 1), (1, 1, 1), (-1, 1, 1)]
+    faces = [0, 3, 2, 1, 4, 5, 6, 7, 0, 1, 5, 4, 2, 3, 7, 6, 1, 2, 6, 5, 0, 4, 7, 3]
+    mesh = add_mesh(stage, "/World/Blob", cube, [4] * 6, faces, color=(0.8, 0.5, 0.2))
+    mesh.GetSubdivisionSchemeAttr().Set(UsdGeom.Tokens.catmullClark)
+    stage.GetRootLayer().Save()
+    res = (160, 120)
+    r = wb.Renderer(path, resolution=res, settings=wb.RenderSettings(**KW))
+    reused, triangles = [], set()
+    for frame in (1.0, 2.0, 3.0, 4.0, 5.0, 5.0):
+        out = r.render(frame)
+        reused.append(out.stats["prims_reused"])
+        triangles.add(out.stats["triangles"])
+        np.testing.assert_array_equal(out.rgba, wb.render(path, frame=frame, resolution=res, **KW).rgba)
+    assert len(triangles) > 1 and reused[-1] == 1   # levels changed; the same frame again keeps it
+    assert 0 in reused[1:]                          # a new level is read again

@@ -9,8 +9,9 @@ every frame when:
   different times (time samples, value clips, splines): its points then hold still too, and the
   points function has no per-frame fallback to take;
 - nor may an attribute of its GeomSubsets, nor an ancestor's motion:blurScale (it is inherited);
-- it has no velocities (points are extrapolated from the frame), no skeleton binding and no
-  subdivision scheme (Catmull-Clark levels follow the image's camera);
+- it has no velocities (points are extrapolated from the frame) and no skeleton binding; a
+  subdivision mesh is kept with the Catmull-Clark level it was read at, which follows its size on
+  screen: a frame that needs another level reads it again;
 - its material table is the one the Renderer keeps across frames (material_cache.py), whose rows
   its indices point at: on a stage whose shading may change over time every frame has a table
   of its own, and no unit is kept there.
@@ -39,10 +40,6 @@ def _varies(attr: Usd.Attribute) -> bool:
 def keepable(prim: Usd.Prim) -> bool:
     """True when a unit read from `prim` at one frame is its unit at every frame (module docstring;
     the skeleton binding is the Scene's to tell, the material table's identity UnitCache's)."""
-    if prim.IsA(UsdGeom.Mesh):
-        mesh = UsdGeom.Mesh(prim)
-        if mesh.GetSubdivisionSchemeAttr().Get() not in (None, UsdGeom.Tokens.none):
-            return False
     if prim.IsA(UsdGeom.PointBased) and UsdGeom.PointBased(prim).GetVelocitiesAttr().HasAuthoredValue():
         return False
     for attr in prim.GetAttributes():
@@ -70,7 +67,7 @@ class UnitCache:
 
     def __init__(self, stage: Usd.Stage, ignored: str | None = None) -> None:
         self._ignored = Sdf.Path(ignored) if ignored else None
-        self._units: dict[Sdf.Path, tuple[GeomUnit, object]] = {}
+        self._units: dict[Sdf.Path, tuple[GeomUnit, object, int | None]] = {}   # (unit, table, level)
         self._verdicts: dict[Sdf.Path, bool] = {}
         self._rows: tuple[tuple[GeomUnit, ...], UnitRows] | None = None   # (units, their rows)
         self.reused = 0        # units given again since the Renderer was made (tests read it)
@@ -86,17 +83,18 @@ class UnitCache:
         self._verdicts.clear()
         self._rows = None
 
-    def get(self, prim: Usd.Prim, table) -> GeomUnit | None:
-        """The unit kept for `prim` when it was read against `table` (the frame's material table)."""
+    def get(self, prim: Usd.Prim, table, level: int | None = None) -> GeomUnit | None:
+        """The unit kept for `prim` when it was read against `table` (the frame's material table)
+        at subdivision level `level` (None: a polygon mesh or gprim)."""
         kept = self._units.get(prim.GetPath())
-        if kept is None or kept[1] is not table:
+        if kept is None or kept[1] is not table or kept[2] != level:
             return None
         self.reused += 1
         return kept[0]
 
-    def keep(self, prim: Usd.Prim, unit: GeomUnit, table, skinned: bool) -> None:
-        """Keep `unit`, just read from `prim` against `table`, if the prim is keepable (a skinned
-        mesh never is: its points follow the skeleton)."""
+    def keep(self, prim: Usd.Prim, unit: GeomUnit, table, skinned: bool, level: int | None = None) -> None:
+        """Keep `unit`, just read from `prim` against `table` at subdivision level `level`, if the
+        prim is keepable (a skinned mesh never is: its points follow the skeleton)."""
         if skinned:
             return
         path = prim.GetPath()
@@ -104,7 +102,7 @@ class UnitCache:
         if verdict is None:
             verdict = self._verdicts[path] = keepable(prim)
         if verdict:
-            self._units[path] = (unit, table)
+            self._units[path] = (unit, table, level)
 
     def rows_for(self, units: list[GeomUnit]) -> UnitRows | None:
         """The rows kept for exactly these units, the same objects in this order (keep_rows), else None."""
