@@ -81,7 +81,7 @@ class Scene:
         self.materials = materials if materials is not None else MaterialTable(frame)
         self.kept_units = kept_units   # a UnitCache: units kept from earlier frames (unit_cache.py)
         self.units_reused = 0
-        self._levels: dict[str, int] = {}   # subdivision meshes' levels found before their read
+        self._levels: dict[str, int] = {}   # subdivision meshes' levels this frame (_mesh_level)
         self.units: list[GeomUnit] = []
         self._xf_caches: dict[float, UsdGeom.XformCache] = {}
         self._transform_verdicts: dict = {}   # prim path -> its transform may vary over time
@@ -146,30 +146,29 @@ class Scene:
     def _read_or_reuse(self, prim: Usd.Prim, t: Usd.TimeCode, read) -> None:
         """The prim's unit as kept from an earlier frame (unit_cache.py), else read(prim, t) and
         offer what it added to the cache."""
-        level = self._refinement_level(prim, t) if self.kept_units is not None and read == self._add_mesh else None
-        kept = self.kept_units.get(prim, self.materials, level) if self.kept_units is not None else None
+        if self.kept_units is None or self._skins.find(prim) is not None:   # a skinned mesh is never kept
+            read(prim, t)
+            return
+        level = self._refinement_level(prim, t) if read == self._add_mesh else None
+        kept = self.kept_units.get(prim, self.materials, level)
         if kept is not None:
             self.units.append(kept)
             self.units_reused += 1
             return
         n = len(self.units)
         read(prim, t)
-        if self.kept_units is not None and len(self.units) == n + 1:
-            self.kept_units.keep(prim, self.units[-1], self.materials, self._skins.find(prim) is not None, level)
+        if len(self.units) == n + 1:
+            self.kept_units.keep(prim, self.units[-1], self.materials, level)
 
     def _refinement_level(self, prim: Usd.Prim, t: Usd.TimeCode) -> int | None:
-        """A subdivision mesh's Catmull-Clark level this frame (its size on screen decides; units
-        are kept per level; _add_mesh reads it from self._levels), None for a polygon mesh."""
+        """A subdivision mesh's Catmull-Clark level this frame, found before its read (its size on
+        screen decides; units are kept per level), None for a polygon mesh."""
         if UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr().Get(t) in (None, UsdGeom.Tokens.none):
             return None
-        if not hasattr(self, "_subdivision_level"):
-            self._subdivision_level = stage_level(self.stage, t)
         try:
-            level = self._mesh_level(prim, self._points_fn(prim, len(UsdGeom.Mesh(prim).GetPointsAttr().Get(t) or [])))
+            return self._mesh_level(prim, self._points_fn(prim, len(UsdGeom.Mesh(prim).GetPointsAttr().Get(t) or [])))
         except InvalidGeometryError:   # read (and named, or dropped) by _add_mesh
             return None
-        self._levels[str(prim.GetPath())] = level
-        return level
 
     def _mesh_topology(self, prim: Usd.Prim, t: Usd.TimeCode):
         mesh = UsdGeom.Mesh(prim)
@@ -257,14 +256,18 @@ class Scene:
         return points_at
 
     def _mesh_level(self, prim: Usd.Prim, points_at: Callable[[float], np.ndarray]) -> int:
-        """The stage's budget level, lowered to what the mesh's size on screen needs (if known)."""
-        if str(prim.GetPath()) in self._levels:
-            return self._levels[str(prim.GetPath())]
-        if self.proj is None or self._subdivision_level <= 1:
-            return self._subdivision_level
-        to_cam = np.array(self._xf_cache(self.frame).GetLocalToWorldTransform(prim)) @ self.cam_from_world(self.frame)
-        return screen_level(self.proj, points_at(self.frame), to_cam, UsdGeom.Mesh(prim), self.frame,
-                            self._subdivision_level)
+        """The stage's budget level (found once a frame), lowered to what the mesh's size on screen
+        needs (if known); kept per prim for the frame (self._levels)."""
+        path = str(prim.GetPath())
+        if path not in self._levels:
+            if not hasattr(self, "_subdivision_level"):
+                self._subdivision_level = stage_level(self.stage, Usd.TimeCode(self.frame))
+            level = self._subdivision_level
+            if self.proj is not None and level > 1:
+                to_cam = np.array(self._xf_cache(self.frame).GetLocalToWorldTransform(prim)) @ self.cam_from_world(self.frame)
+                level = screen_level(self.proj, points_at(self.frame), to_cam, UsdGeom.Mesh(prim), self.frame, level)
+            self._levels[path] = level
+        return self._levels[path]
 
     def _prim_transform_fn(self, prim: Usd.Prim):
         """transforms_at of a prim (units.prim_transform_fn), the scene's verdicts shared."""
@@ -295,8 +298,6 @@ class Scene:
             return
         material, flags, blur = self._common(prim, t)
         flags |= FLAG_SMOOTH if smooth else 0
-        if smooth and not skin and not hasattr(self, "_subdivision_level"):
-            self._subdivision_level = stage_level(self.stage, t)
         refined = mesh_refinement(UsdGeom.Mesh(prim), t, npts, self._mesh_level(prim, points_at)) \
             if smooth and not skin else None
         if refined is not None:    # Catmull-Clark levels instead of the cage (subdivision.py)

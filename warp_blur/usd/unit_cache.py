@@ -92,11 +92,9 @@ class UnitCache:
         self.reused += 1
         return kept[0]
 
-    def keep(self, prim: Usd.Prim, unit: GeomUnit, table, skinned: bool, level: int | None = None) -> None:
+    def keep(self, prim: Usd.Prim, unit: GeomUnit, table, level: int | None = None) -> None:
         """Keep `unit`, just read from `prim` against `table` at subdivision level `level`, if the
-        prim is keepable (a skinned mesh never is: its points follow the skeleton)."""
-        if skinned:
-            return
+        prim is keepable (the Scene offers no skinned mesh: its points follow the skeleton)."""
         path = prim.GetPath()
         verdict = self._verdicts.get(path)
         if verdict is None:

@@ -172,11 +172,11 @@ class SmallUnitGroup:
         """Write the group's camera-space vertices at USD time t_prim into positions (V, 3) float64
         (cam_from_world: (4, 4) row-vector matrix; cache: the UsdGeom.XformCache of t_prim) and
         each unit's visibility into unit_visible: what Scene.snapshot does prim by prim."""
-        members = [units[ui] for ui in self.units]
         key = cam_from_world.tobytes() if self.still else None
         if self.still and self.last_placed is not None and self.last_placed[0] == key:
             positions[self.rows] = self.last_placed[1]   # a still group seen from the same camera
         else:
+            members = [units[ui] for ui in self.units]
             if self.still and self.held is None:
                 self.held = (np.concatenate([u.transforms_at(t_prim, cache) for u in members]),
                              np.concatenate([u.points_at(t_prim) for u in members]))
@@ -191,6 +191,7 @@ class SmallUnitGroup:
             if self.still:
                 self.last_placed = (key, block)
         if self.held_visible is None:
+            members = [units[ui] for ui in self.units]
             visible = np.array([u.visible_at(t_prim) for u in members], bool)
             if not any(u.visibility[0] for u in members):
                 self.held_visible = visible
