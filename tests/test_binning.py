@@ -168,3 +168,56 @@ def test_slab_rejects_change_no_image(monkeypatch, method, scene):
     real = frame.swept_bands
     monkeypatch.setattr(frame, "swept_bands", lambda *a, **k: real(*a, **k)[:, :0])   # no slabs at all
     assert np.array_equal(with_slabs, wb.render(path, **kw).rgba)
+
+
+def _lists_by_brute_force(proj, boxes, keep, tile_size, order_key, bands):
+    """Every tile's entries, one pair at a time: the box reaches the tile and no slab misses it
+    (band_misses_tiles), in ascending (order_key, entry index)."""
+    tiles_x = (proj.width + tile_size - 1) // tile_size
+    tiles_y = (proj.height + tile_size - 1) // tile_size
+    lists = [[] for _ in range(tiles_x * tiles_y)]
+    entries = [e for e in range(len(boxes)) if keep[e]]
+    entries.sort(key=lambda e: (order_key[e], e))
+    for e in entries:
+        x0, y0, x1, y1 = (int(np.clip(np.floor(v / tile_size), 0, n - 1))
+                          for v, n in zip(boxes[e], (tiles_x, tiles_y, tiles_x, tiles_y)))
+        for ty in range(y0, y1 + 1):
+            for tx in range(x0, x1 + 1):
+                slabs = bands[e]
+                misses = band_misses_tiles(slabs, np.full(len(slabs), tx), np.full(len(slabs), ty), tile_size)
+                if not misses.any():
+                    lists[ty * tiles_x + tx].append(e)
+    return lists
+
+
+def test_tile_lists_hold_each_tiles_entries_in_key_order_as_pair_by_pair_binning_does():
+    """bin_entries (tile_lists.py's kernels) against binning every (entry, tile) pair on its own:
+    boxes partly off screen, slabs that pass everything (zero normal) or cut corners, and order
+    keys with ties (broken by entry index)."""
+    proj = Projection(False, (-1.0, -0.75, 1.0, 0.75), 0.1, 100.0, 200, 150)
+    rng = np.random.default_rng(5)
+    n = 300
+    lo = rng.uniform(-40.0, 210.0, (n, 2))
+    boxes = np.concatenate([lo, lo + rng.uniform(0.5, 80.0, (n, 2))], axis=1)
+    keep = rng.uniform(size=n) < 0.9
+    order_key = rng.integers(0, 20, n).astype(np.float64)   # many ties
+    angle = rng.uniform(0.0, 2.0 * np.pi, (n, 3))
+    centre = 0.5 * (boxes[:, :2] + boxes[:, 2:])
+    # slabs about each box's centre, some narrower than the box (they cut tiles), some wider
+    along = np.cos(angle) * centre[:, :1] + np.sin(angle) * centre[:, 1:]
+    half = rng.uniform(2.0, 60.0, (n, 3))
+    bands = np.stack([np.cos(angle), np.sin(angle), along - half, along + half], axis=2)
+    bands[::4, 1] = (0.0, 0.0, -1.0, 1.0)                   # some pass-all slabs
+    bands = bands.astype(np.float32)
+    for tile_size in (16, 8):
+        bins = bin_entries(proj, boxes, keep, tile_size, order_key, bands)
+        expected = _lists_by_brute_force(proj, boxes, keep, tile_size, order_key, bands)
+        got = [list(bins.tile_entries[bins.tile_offsets[t]:bins.tile_offsets[t + 1]]) for t in range(len(expected))]
+        assert got == expected
+        assert bins.num_pairs == sum(len(x) for x in expected) > n   # slabs and boxes both at work
+    # without an order key each tile lists its entries by index; without slabs, by box alone
+    plain = bin_entries(proj, boxes, keep, 16)
+    for t in range(plain.tiles_x * plain.tiles_y):
+        listed = plain.tile_entries[plain.tile_offsets[t]:plain.tile_offsets[t + 1]]
+        assert np.all(np.diff(listed) > 0)
+    assert plain.num_pairs > bin_entries(proj, boxes, keep, 16, bands=bands).num_pairs

@@ -1,4 +1,4 @@
-"""Screen-tile binning of entries on the host: which entries may cover which 16×16-pixel tile.
+"""Screen-tile binning of entries on the host: which entries may cover which screen tile.
 
 An entry's screen footprint over its time span is bounded by the projections of its vertices at
 both ends (a linearly moving point projects to a straight screen segment while in front of the
@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.camera import Projection
+from .tile_lists import tile_lists
 
 TILE_SIZE = 16
 #: Slack (pixels) around the camera's entry boxes and bands: kernels test them at sample points,
@@ -206,7 +207,7 @@ def tile_mask_pixels(tiles: np.ndarray, tile_size: int, width: int, height: int)
 
 def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size: int = TILE_SIZE,
                 order_key: np.ndarray | None = None, bands: np.ndarray | None = None) -> TileBins:
-    """Tile lists from entry pixel boxes (count, prefix sum, fill — on the host with NumPy). Each
+    """Tile lists from entry pixel boxes (counted, written and scattered by tile_lists.py's kernels). Each
     tile lists its entries in entry order, or by ascending order_key (E,) when given (e.g. the
     nearest depth, so that kernels walking a list meet the front surfaces first). With swept
     slabs (E, S, 4) (swept_bands; (E, 4): one each), a tile that an entry's box reaches but one
@@ -214,34 +215,11 @@ def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size
     tiles_x = (proj.width + tile_size - 1) // tile_size
     tiles_y = (proj.height + tile_size - 1) // tile_size
     idx = np.nonzero(keep)[0]
-    b = boxes[idx]
-    tx0 = np.clip(np.floor(b[:, 0] / tile_size), 0, tiles_x - 1).astype(np.int64)
-    ty0 = np.clip(np.floor(b[:, 1] / tile_size), 0, tiles_y - 1).astype(np.int64)
-    tx1 = np.clip(np.floor(b[:, 2] / tile_size), 0, tiles_x - 1).astype(np.int64)
-    ty1 = np.clip(np.floor(b[:, 3] / tile_size), 0, tiles_y - 1).astype(np.int64)
-    w = tx1 - tx0 + 1
-    counts = w * (ty1 - ty0 + 1)
-    total = int(counts.sum())
-    rep = np.repeat(np.arange(len(idx)), counts)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]) if len(counts) else np.zeros(0, np.int64)
-    local = np.arange(total) - np.repeat(starts, counts)
-    tx = tx0[rep] + local % w[rep]
-    ty = ty0[rep] + local // w[rep]
+    if order_key is not None:
+        idx = idx[np.argsort(np.asarray(order_key)[idx], kind="stable")]
     if bands is not None:
         bands = np.asarray(bands, np.float32)
         bands = bands[:, None] if bands.ndim == 2 else bands          # (E, 4): one slab each
-    if bands is not None and total:
-        for k in range(bands.shape[1]):
-            if not bands[idx, k, :2].any():
-                continue   # no entry listed here has this slab
-            hit = ~band_misses_tiles(bands[idx[rep], k], tx, ty, tile_size)
-            rep, tx, ty = rep[hit], tx[hit], ty[hit]
-    tile = ty * tiles_x + tx
-    if order_key is None:
-        order = np.argsort(tile, kind="stable")
-    else:
-        order = np.lexsort((np.asarray(order_key)[idx[rep]], tile))
-    entries = idx[rep[order]].astype(np.int32)
-    per_tile = np.bincount(tile, minlength=tiles_x * tiles_y)
-    offsets = np.concatenate([[0], np.cumsum(per_tile)]).astype(np.int32)
+    slabs = bands if bands is not None else np.zeros((1, 0, 4), np.float32)
+    offsets, entries = tile_lists(boxes, idx, slabs, tile_size, tiles_x, tiles_y)
     return TileBins(offsets, entries, tiles_x, tiles_y, np.asarray(boxes, np.float32), bands)
