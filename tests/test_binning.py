@@ -170,14 +170,14 @@ def test_slab_rejects_change_no_image(monkeypatch, method, scene):
     assert np.array_equal(with_slabs, wb.render(path, **kw).rgba)
 
 
-def _lists_by_brute_force(proj, boxes, keep, tile_size, order_key, bands):
+def _lists_by_brute_force(proj, boxes, keep, tile_size, near_depth, bands):
     """Every tile's entries, one pair at a time: the box reaches the tile and no slab misses it
-    (band_misses_tiles), in ascending (order_key, entry index)."""
+    (band_misses_tiles), in ascending (near_depth, entry index)."""
     tiles_x = (proj.width + tile_size - 1) // tile_size
     tiles_y = (proj.height + tile_size - 1) // tile_size
     lists = [[] for _ in range(tiles_x * tiles_y)]
     entries = [e for e in range(len(boxes)) if keep[e]]
-    entries.sort(key=lambda e: (order_key[e], e))
+    entries.sort(key=lambda e: (near_depth[e], e))
     for e in entries:
         x0, y0, x1, y1 = (int(np.clip(np.floor(v / tile_size), 0, n - 1))
                           for v, n in zip(boxes[e], (tiles_x, tiles_y, tiles_x, tiles_y)))
@@ -200,7 +200,7 @@ def test_tile_lists_hold_each_tiles_entries_in_key_order_as_pair_by_pair_binning
     lo = rng.uniform(-40.0, 210.0, (n, 2))
     boxes = np.concatenate([lo, lo + rng.uniform(0.5, 80.0, (n, 2))], axis=1)
     keep = rng.uniform(size=n) < 0.9
-    order_key = rng.integers(0, 20, n).astype(np.float64)   # many ties
+    near_depth = rng.integers(0, 20, n).astype(np.float64)   # many ties
     angle = rng.uniform(0.0, 2.0 * np.pi, (n, 3))
     centre = 0.5 * (boxes[:, :2] + boxes[:, 2:])
     # slabs about each box's centre, some narrower than the box (they cut tiles), some wider
@@ -210,8 +210,8 @@ def test_tile_lists_hold_each_tiles_entries_in_key_order_as_pair_by_pair_binning
     bands[::4, 1] = (0.0, 0.0, -1.0, 1.0)                   # some pass-all slabs
     bands = bands.astype(np.float32)
     for tile_size in (16, 8):
-        bins = bin_entries(proj, boxes, keep, tile_size, order_key, bands)
-        expected = _lists_by_brute_force(proj, boxes, keep, tile_size, order_key, bands)
+        bins = bin_entries(proj, boxes, keep, tile_size, near_depth, bands)
+        expected = _lists_by_brute_force(proj, boxes, keep, tile_size, near_depth, bands)
         got = [list(bins.tile_entries[bins.tile_offsets[t]:bins.tile_offsets[t + 1]]) for t in range(len(expected))]
         assert got == expected
         assert bins.num_pairs == sum(len(x) for x in expected) > n   # slabs and boxes both at work

@@ -114,3 +114,5 @@ class Bins:
     tile_entries: wp.array(dtype=int)
     entry_boxes: wp.array(dtype=wp.vec4)    # (E,) swept pixel box (x0, y0, x1, y1) of each entry
     entry_bands: wp.array2d(dtype=wp.vec4)  # (E, S) swept slabs (nx, ny, lo, hi): across its motion, along its edges
+    entry_near: wp.array(dtype=float)       # (E,) view depth bound the lists ascend in (binning.TileBins)
+    near_sorted: int                        # 1: the lists ascend in entry_near; 0: entry order (entry_near unused)

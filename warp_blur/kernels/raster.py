@@ -45,6 +45,18 @@ def box_rejects(bins: Bins, e: int, x: float, y: float) -> bool:
     return False
 
 
+#: how far (relative) an entry's nearest vertex must lie beyond a hit for a list walk to stop
+#: there: room for the float32 rounding of hit depths (~1e-7 relative) and of the stored bound
+NEAR_STOP_MARGIN = wp.constant(1.0e-5)
+
+
+@wp.func
+def list_beyond(bins: Bins, e: int, z: float) -> bool:
+    """True when entry e, and so every entry after it in a list running nearest first
+    (bins.entry_near), lies wholly beyond depth z: none can be hit nearer than z."""
+    return bins.entry_near[e] > z + NEAR_STOP_MARGIN * wp.abs(z) + 1.0e-30
+
+
 @wp.func
 def nearest_entry(view: View, geo: Geometry, bins: Bins, tile: int, sx: float, sy: float, o: wp.vec3, d: wp.vec3,
                   u: float):
@@ -52,20 +64,25 @@ def nearest_entry(view: View, geo: Geometry, bins: Bins, tile: int, sx: float, s
 
     Returns (entry or -1, interpolation alpha, hit (1, depth, w_b, w_c)). Ties in depth go to the
     lower entry index, so the result is deterministic. Cut-out points are passed through (cutout.py).
+    Where the tile lists run nearest first (bins.entry_near), the walk stops at the first entry
+    whose nearest depth is beyond the hit found (list_beyond).
     """
     best_e = int(-1)
     best_alpha = float(0.0)
     best = wp.vec4(0.0, 0.0, 0.0, 0.0)
+    sorted_lists = bins.near_sorted != 0
     for i in range(bins.tile_offsets[tile], bins.tile_offsets[tile + 1]):
         e = bins.tile_entries[i]
+        if sorted_lists and best_e >= 0 and list_beyond(bins, e, best[1]):
+            break
         alpha = entry_alpha(geo, e, u)
         if alpha >= 0.0 and not box_rejects(bins, e, sx, sy):
             vi = geo.tri_vertices[geo.entry_tri[e]]
             hit = intersect_triangle(o, d, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
                                      entry_vertex(geo, e, vi[2], alpha), vi)
             if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far:
-                if (best_e < 0 or hit[1] < best[1]) and not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3], u,
-                                                                         sx, sy):
+                nearer = best_e < 0 or hit[1] < best[1] or (hit[1] == best[1] and e < best_e)
+                if nearer and not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3], u, sx, sy):
                     best_e = e
                     best_alpha = alpha
                     best = hit

@@ -27,11 +27,15 @@ SAMPLE_MARGIN_PX = 0.05
 @dataclass
 class TileBins:
     tile_offsets: np.ndarray   # (num_tiles + 1,) int32
-    tile_entries: np.ndarray   # (pairs,) int32, ascending entry order within each tile
+    tile_entries: np.ndarray   # (pairs,) int32, each tile's entries (ascending entry_near, or entry order)
     tiles_x: int
     tiles_y: int
     entry_boxes: np.ndarray | None = None   # (E, 4) float32 swept pixel boxes
     entry_bands: np.ndarray | None = None   # (E, S, 4) float32 swept slabs (nx, ny, lo, hi), see swept_bands
+    #: (E,) a lower bound of each entry's view depth when every list runs in ascending order of it
+    #: (bin_entries' near_depth), so a walk for the nearest hit may stop at the first entry beyond
+    #: the hit it has; None: lists in entry order
+    entry_near: np.ndarray | None = None
 
     @property
     def num_pairs(self) -> int:
@@ -205,21 +209,35 @@ def tile_mask_pixels(tiles: np.ndarray, tile_size: int, width: int, height: int)
     return np.nonzero(mask.ravel())[0]
 
 
+def entry_near_depth(positions: np.ndarray, tri_vertices: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray,
+                     entry_k1: np.ndarray) -> np.ndarray:
+    """(E,) nearest view depth of each entry's six vertices (its triangle at both span ends): a
+    lower bound of its depth anywhere over the span, the key that orders tile lists front first."""
+    if len(entry_tri) == 0:
+        return np.zeros(0)
+    vi = tri_vertices[entry_tri]                                            # (E, 3)
+    z0 = -positions[entry_k0[:, None], vi, 2]
+    z1 = -positions[entry_k1[:, None], vi, 2]
+    return np.minimum(z0.min(axis=1), z1.min(axis=1))
+
+
 def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size: int = TILE_SIZE,
-                order_key: np.ndarray | None = None, bands: np.ndarray | None = None) -> TileBins:
+                near_depth: np.ndarray | None = None, bands: np.ndarray | None = None) -> TileBins:
     """Tile lists from entry pixel boxes (counted, written and scattered by tile_lists.py's kernels). Each
-    tile lists its entries in entry order, or by ascending order_key (E,) when given (e.g. the
-    nearest depth, so that kernels walking a list meet the front surfaces first). With swept
+    tile lists its entries in entry order, or by ascending near_depth (E,) when given (a lower
+    bound of each entry's view depth, ties by entry index: kernels walking a list meet the front
+    surfaces first, and may stop at the first entry beyond what they hold). With swept
     slabs (E, S, 4) (swept_bands; (E, 4): one each), a tile that an entry's box reaches but one
     of its slabs misses does not list it: a diagonal streak's box holds many such tiles."""
     tiles_x = (proj.width + tile_size - 1) // tile_size
     tiles_y = (proj.height + tile_size - 1) // tile_size
     idx = np.nonzero(keep)[0]
-    if order_key is not None:
-        idx = idx[np.argsort(np.asarray(order_key)[idx], kind="stable")]
+    if near_depth is not None:
+        idx = idx[np.argsort(np.asarray(near_depth)[idx], kind="stable")]
     if bands is not None:
         bands = np.asarray(bands, np.float32)
         bands = bands[:, None] if bands.ndim == 2 else bands          # (E, 4): one slab each
     slabs = bands if bands is not None else np.zeros((1, 0, 4), np.float32)
     offsets, entries = tile_lists(boxes, idx, slabs, tile_size, tiles_x, tiles_y)
-    return TileBins(offsets, entries, tiles_x, tiles_y, np.asarray(boxes, np.float32), bands)
+    near = None if near_depth is None else np.asarray(near_depth, np.float32)
+    return TileBins(offsets, entries, tiles_x, tiles_y, np.asarray(boxes, np.float32), bands, near)

@@ -361,4 +361,7 @@ def make_bins(bins: TileBins, device: str) -> Bins:
     if bands is None:   # no slab reject: one pass-all slab each
         bands = pass_all_slabs(len(boxes))
     b.entry_bands = device_array(bands.astype(np.float32), wp.vec4, device)   # (E, S) slabs
+    near = bins.entry_near if bins.entry_near is not None else np.zeros(0, np.float32)
+    b.entry_near = device_array(near.astype(np.float32), float, device)
+    b.near_sorted = 1 if bins.entry_near is not None else 0
     return b

@@ -24,7 +24,7 @@ import warp as wp
 from ...kernels.cutout import cutout_hides, cutout_opacity, has_cutout, is_fractional, opacity_hides
 from ...kernels.dome import dome_over
 from ...kernels.kernel_types import Bins, Geometry, Shading, View
-from ...kernels.raster import add_pixel, box_rejects, pixel_tile
+from ...kernels.raster import add_pixel, box_rejects, list_beyond, pixel_tile
 from ...kernels.rays import intersect_triangle, static_entry_hit
 from .coverage import MAX_SPAN_PIECES, entry_edges, next_breakpoint, piece_covered
 from .occlusion import all_hidden, behind, interval_hidden, plane_hidden, record_interval, reset_slots, slots_depth
@@ -235,11 +235,14 @@ def nearest_static(view: View, geo: Geometry, static_bins: Bins, tile: int, sx: 
                    d: wp.vec3):
     """(entry, depth) of the nearest static entry hit by the sample's ray, or (-1, inf). It covers
     the whole shutter, so static surfaces behind it never show: static geometry costs what a
-    sharp render's visibility costs."""
+    sharp render's visibility costs. The lists run nearest first: the walk stops at the first
+    entry wholly beyond the hit it has."""
     e_static = int(-1)
     z_static = float(wp.inf)
     for i in range(static_bins.tile_offsets[tile], static_bins.tile_offsets[tile + 1]):
         e = static_bins.tile_entries[i]
+        if e_static >= 0 and static_bins.near_sorted != 0 and list_beyond(static_bins, e, z_static):
+            break
         if not box_rejects(static_bins, e, sx, sy):
             hit = static_entry_hit(geo, e, o, d)
             if hit[0] > 0.0 and in_range(view, hit[1]) and hit[1] < z_static \

@@ -20,7 +20,7 @@ without it (the kept one is never dropped later: culling only removes what is be
 is skipped by its nearest vertex, or else (plane_hidden) by where the sample's ray meets its
 plane over its span, bounded by Bernstein coefficients: a surface tilted or turning in depth
 reaches far nearer with a vertex than where the ray meets it. Tile
-lists run nearest first (bin order_key), so the front layers fill the slots early and, once every
+lists run nearest first (bin_entries' near_depth), so the front layers fill the slots early and, once every
 slot is covered, the walk stops at the first entry whose nearest depth is behind all of them.
 """
 

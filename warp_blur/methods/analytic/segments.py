@@ -22,6 +22,7 @@ from pxr import UsdGeom
 
 from ...core.camera import Projection
 from ...core.parallel import Background, default_threads
+from ...raster.binning import entry_near_depth
 from ...raster.culling import hidden_back_faces
 from ..frame import MOTION_PROBES
 from ...core.log import warn_once
@@ -295,18 +296,6 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
 EDGE_TABLES = True
 
 
-def entry_near_depth(positions: np.ndarray, tri_vertices: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray,
-                     entry_k1: np.ndarray) -> np.ndarray:
-    """(E,) nearest view depth of each entry's six vertices (its triangle at both span ends): a
-    lower bound of its depth anywhere over the span, the key that orders tile lists front first."""
-    if len(entry_tri) == 0:
-        return np.zeros(0)
-    vi = tri_vertices[entry_tri]                                            # (E, 3)
-    z0 = -positions[entry_k0[:, None], vi, 2]
-    z1 = -positions[entry_k1[:, None], vi, 2]
-    return np.minimum(z0.min(axis=1), z1.min(axis=1))
-
-
 def prepare_motion(ctx):
     """The moving scene of a frame on the device, as the analytic and stochastic methods use it:
     (plan, Geometry, (Bins of the static entries, Bins of the moving entries), shading, View).
@@ -340,7 +329,7 @@ def prepare_motion(ctx):
     static = (plan.entry_k0 == plan.entry_k1) & ~ctx.scene.tri_fractional[plan.entry_tri]
     near = entry_near_depth(plan.positions, ctx.scene.tri_vertices, plan.entry_tri, plan.entry_k0, plan.entry_k1)
     tile_bins = ctx.bin_groups(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1, [static, ~static],
-                               order_key=near)
+                               near_depth=near)
     bins = tuple(make_bins(b, ctx.device) for b in tile_bins)
     shading = with_shadow_free(shading, geo, len(plan.entry_tri), ctx.device, ctx.counters)
     return plan, geo, bins, shading, ctx.view(tile_bins[0])
