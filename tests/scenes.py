@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from authoring import add_camera, add_dome, add_distant_light, add_material, add_mesh, add_quad, new_stage
 
 
@@ -163,5 +165,32 @@ def lit_ball_stage(path: str, smooth: bool) -> str:
                     translate_samples={0.5: (-0.6, -0.1, 0.0), 1.5: (0.6, 0.15, 0.0)})
     if smooth:
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.catmullClark)
+    stage.GetRootLayer().Save()
+    return path
+
+
+def tilted_layers_stage(path: str) -> str:
+    """Moving, interpenetrating quads, every other one steeply tilted in depth (its nearest corner
+    says little of its depth at a pixel) and the rest tilted by a few degrees (their corners lie
+    within a percent or two of their depth anywhere: a walk that stopped a little early would
+    miss them), plus, in front, two coplanar quads of different colours at the same place (a tie
+    in depth at every pixel they cover)."""
+    stage = new_stage(path)
+    add_camera(stage)
+    add_dome(stage)
+    for i in range(10):
+        mat = add_material(stage, f"/World/Looks/T{i}", emissive=(0.1 * i, 0.5, 1.0 - 0.1 * i))
+        angle = math.radians((-70.0 + 15.0 * i) if i % 2 else (-4.0 + 1.0 * i))
+        h = 1.5
+        ax, az = h * math.cos(angle), h * math.sin(angle)
+
+        def quad(shift: float, ax=ax, az=az, i=i) -> list:
+            y0, y1 = -0.8 + 0.05 * i, 0.8 - 0.05 * i
+            return [(-ax + shift, y0, -az), (ax + shift, y0, az), (ax + shift, y1, az), (-ax + shift, y1, -az)]
+        add_mesh(stage, f"/World/T{i}", quad(0.0), [4], [0, 1, 2, 3], material=mat,
+                 points_samples={0.5: quad(-0.3 + 0.06 * i), 1.5: quad(0.3 - 0.06 * i)})
+    for name, colour in (("TwinA", (1.0, 0.0, 0.0)), ("TwinB", (0.0, 1.0, 0.0))):
+        mat = add_material(stage, f"/World/Looks/{name}", emissive=colour)
+        add_quad(stage, f"/World/{name}", 0.3, 0.3, material=mat, translate=(0.4, 0.3, 2.5))
     stage.GetRootLayer().Save()
     return path

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from scenes import emissive_quad_stage, lit_stage
+from scenes import emissive_quad_stage, lit_stage, tilted_layers_stage
 
 import warp_blur as wb
 
@@ -111,36 +111,6 @@ def test_near_plane_crossing_triangle_renders_its_visible_part(scene_path):
     assert not cov[(t < 0) & margin].any()
 
 
-def _tilted_stack_with_twins(path: str) -> str:
-    """Moving, interpenetrating quads, every other one steeply tilted in depth (its nearest corner
-    says little of its depth at a pixel) and the rest tilted by a few degrees (their corners lie
-    within a percent or two of their depth anywhere: a walk that stopped a little early would
-    miss them), plus, in front, two coplanar quads of different colours at the same place (a tie
-    in depth at every pixel they cover)."""
-    import math
-
-    from authoring import add_camera, add_dome, add_material, add_mesh, add_quad, new_stage
-    stage = new_stage(path)
-    add_camera(stage)
-    add_dome(stage)
-    for i in range(10):
-        mat = add_material(stage, f"/World/Looks/T{i}", emissive=(0.1 * i, 0.5, 1.0 - 0.1 * i))
-        angle = math.radians((-70.0 + 15.0 * i) if i % 2 else (-4.0 + 1.0 * i))
-        h = 1.5
-        ax, az = h * math.cos(angle), h * math.sin(angle)
-
-        def quad(shift: float, ax=ax, az=az, i=i) -> list:
-            y0, y1 = -0.8 + 0.05 * i, 0.8 - 0.05 * i
-            return [(-ax + shift, y0, -az), (ax + shift, y0, az), (ax + shift, y1, az), (-ax + shift, y1, -az)]
-        add_mesh(stage, f"/World/T{i}", quad(0.0), [4], [0, 1, 2, 3], material=mat,
-                 points_samples={0.5: quad(-0.3 + 0.06 * i), 1.5: quad(0.3 - 0.06 * i)})
-    for name, colour in (("TwinA", (1.0, 0.0, 0.0)), ("TwinB", (0.0, 1.0, 0.0))):
-        mat = add_material(stage, f"/World/Looks/{name}", emissive=colour)
-        add_quad(stage, f"/World/{name}", 0.3, 0.3, material=mat, translate=(0.4, 0.3, 2.5))
-    stage.GetRootLayer().Save()
-    return path
-
-
 def test_nearest_first_lists_stop_early_and_change_no_pixel(scene_path, monkeypatch):
     """Sharp passes walk tile lists nearest first and stop at the first entry wholly beyond the
     hit they hold (raster.list_beyond); ties in depth still go to the lower entry index. The
@@ -148,7 +118,7 @@ def test_nearest_first_lists_stop_early_and_change_no_pixel(scene_path, monkeypa
     entry_near), for accumulation (sharp instants) and the AOV pass, on a stack of steeply
     tilted, interpenetrating layers with a coplanar pair of quads in front."""
     from warp_blur.methods.frame import FrameContext
-    path = _tilted_stack_with_twins(scene_path())
+    path = tilted_layers_stage(scene_path())
     kw = dict(frame=1, resolution=(96, 72), method="accumulation", samples=4, shadows="off")
     nearest_first = wb.render(path, **kw)
     original_bin = FrameContext.bin_groups

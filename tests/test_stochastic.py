@@ -90,3 +90,23 @@ def test_still_entries_shaded_once_a_pixel_equal_shading_every_sample(scene_path
     np.testing.assert_array_equal(kept.rgba, every.rgba)
     # the translucent layers are there, partly (a pixel's samples differ)
     assert np.abs(kept.rgba - wb.render(path, **kw, shadows="off").rgba).max() > 0.05
+
+
+def test_nearest_first_walk_stops_early_and_changes_no_sample(scene_path, monkeypatch):
+    """The moving walk stops at the first entry wholly beyond every sample's hit (and the static
+    surface): the image equals that of lists in entry order walked to the end, on steeply and
+    slightly tilted interpenetrating layers with a coplanar pair in front (scenes.tilted_layers_stage)."""
+    from scenes import tilted_layers_stage
+
+    from warp_blur.methods.frame import FrameContext
+    path = tilted_layers_stage(scene_path())
+    kw = dict(frame=1, resolution=(96, 72), method="stochastic", samples=8, shadows="off")
+    nearest_first = wb.render(path, **kw)
+    original_bin = FrameContext.bin_groups
+
+    def entry_order(self, positions, entry_tri, entry_k0, entry_k1, groups, near_depth=None):
+        return original_bin(self, positions, entry_tri, entry_k0, entry_k1, groups, None)
+    monkeypatch.setattr(FrameContext, "bin_groups", entry_order)
+    walked = wb.render(path, **kw)
+    assert nearest_first.rgba[..., 3].mean() > 0.05
+    np.testing.assert_array_equal(nearest_first.rgba, walked.rgba)

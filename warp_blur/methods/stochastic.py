@@ -22,7 +22,7 @@ from ..kernels.cutout import cutout_hides, cutout_opacity, has_cutout, opacity_h
 from ..kernels.dome import dome_at, dome_over
 from ..kernels.kernel_types import Bins, Geometry, Shading, View
 from ..core.parallel import FINE_BANDS, launch_pixels
-from ..kernels.raster import add_pixel, box_rejects, pixel_tile
+from ..kernels.raster import add_pixel, box_rejects, list_beyond, pixel_tile
 from ..kernels.rays import entry_vertex, intersect_triangle, pixel_ray_direction, pixel_ray_origin, static_entry_hit
 from ..kernels.shading import shade_entry_hit, shade_entry_hit_span
 from .analytic.coverage import MAX_SPAN_PIECES, entry_edges, next_breakpoint, piece_covered
@@ -65,6 +65,28 @@ def covered_time_bounds(view: View, geo: Geometry, e: int, o: wp.vec3, d: wp.vec
     return wp.vec2(u0 + lo * (u1 - u0), u0 + hi * (u1 - u0))
 
 
+@wp.func
+def lower_sample(best_z: wp.array2d(dtype=float), best_e: wp.array2d(dtype=int), tid: int, j: int, n: int, z: float,
+                 e: int, unhit: int, far: float):
+    """Sample j of row tid now sees entry e at depth z (nearer than what it had): (samples still
+    without a hit, the farthest of the samples' hits once every sample has one, else inf)."""
+    old = best_z[tid, j]
+    best_z[tid, j] = z
+    best_e[tid, j] = e
+    left = unhit
+    if old == wp.inf:
+        left = unhit - 1
+    if left > 0:
+        return left, float(wp.inf)
+    farthest = float(far)
+    if old == wp.inf or old >= far:
+        # the farthest may have been this sample's: found again
+        farthest = float(-wp.inf)
+        for k in range(n):
+            farthest = wp.max(farthest, best_z[tid, k])
+    return left, farthest
+
+
 @wp.kernel(enable_backward=False)
 def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins: Bins, moving_bins: Bins,
                              sub: wp.vec2, n: int, seed: int, lights_static: int, keep_still: int, weight: float,
@@ -88,8 +110,15 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
     tile = pixel_tile(view, px, py)
     # the nearest static surface covers every sample; moving entries are tracked per sample
     e_static, z_static = nearest_static(view, geo, static_bins, tile, x, y, o, d)
+    # the list runs nearest first: the walk stops at the first entry wholly beyond every sample's
+    # hit so far (and the static surface); unhit counts the samples with none yet, far is the
+    # farthest of their hits once there are none
+    unhit = n
+    far = float(wp.inf)
     for i in range(moving_bins.tile_offsets[tile], moving_bins.tile_offsets[tile + 1]):
         e = moving_bins.tile_entries[i]
+        if moving_bins.near_sorted != 0 and list_beyond(moving_bins, e, wp.min(far, z_static)):
+            break
         if box_rejects(moving_bins, e, x, y):
             continue
         still = geo.entry_k0[e] == geo.entry_k1[e]   # a still entry here has fractional opacity
@@ -118,8 +147,7 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
                     for j in range(j0, j1 + 1):
                         u = times[tid, j]
                         if hit[1] < best_z[tid, j] and not (tested and opacity_hides(geo, tri, opacity, u, x, y)):
-                            best_z[tid, j] = hit[1]
-                            best_e[tid, j] = e
+                            unhit, far = lower_sample(best_z, best_e, tid, j, n, hit[1], e, unhit, far)
             else:
                 for j in range(j0, j1 + 1):
                     u = times[tid, j]
@@ -130,8 +158,7 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
                                                  vi)
                         if hit[0] > 0.0 and hit[1] >= view.near and hit[1] <= view.far and hit[1] < best_z[tid, j] \
                                 and not cutout_hides(geo, geo.entry_tri[e], hit[2], hit[3], u, x, y):
-                            best_z[tid, j] = hit[1]
-                            best_e[tid, j] = e
+                            unhit, far = lower_sample(best_z, best_e, tid, j, n, hit[1], e, unhit, far)
     moving_seen = int(0)
     for j in range(n):
         if best_e[tid, j] >= 0 and best_z[tid, j] < z_static:
