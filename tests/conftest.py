@@ -18,3 +18,15 @@ def scene_path(tmp_path):
     """A function giving a fresh .usda path in the test's tmp dir."""
     counter = iter(range(1000))
     return lambda name="scene": str(tmp_path / f"{name}_{next(counter)}.usda")
+
+
+def bin_in_entry_order(monkeypatch) -> None:
+    """From now on (in this test) the frame's tile lists run in entry order, without entry_near:
+    every walk for the nearest hit goes to the end of its list (the reference the nearest-first
+    walks are compared with)."""
+    from warp_blur.methods.frame import FrameContext
+    original_bin = FrameContext.bin_groups
+
+    def entry_order(self, positions, entry_tri, entry_k0, entry_k1, groups, near_depth=None):
+        return original_bin(self, positions, entry_tri, entry_k0, entry_k1, groups, None)
+    monkeypatch.setattr(FrameContext, "bin_groups", entry_order)

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from conftest import bin_in_entry_order
 from scenes import emissive_quad_stage, lit_stage, tilted_layers_stage
 
 import warp_blur as wb
@@ -117,15 +118,10 @@ def test_nearest_first_lists_stop_early_and_change_no_pixel(scene_path, monkeypa
     images and AOVs equal those of lists in entry order walked to the end (bins without
     entry_near), for accumulation (sharp instants) and the AOV pass, on a stack of steeply
     tilted, interpenetrating layers with a coplanar pair of quads in front."""
-    from warp_blur.methods.frame import FrameContext
     path = tilted_layers_stage(scene_path())
     kw = dict(frame=1, resolution=(96, 72), method="accumulation", samples=4, shadows="off")
     nearest_first = wb.render(path, **kw)
-    original_bin = FrameContext.bin_groups
-
-    def entry_order(self, positions, entry_tri, entry_k0, entry_k1, groups, near_depth=None):
-        return original_bin(self, positions, entry_tri, entry_k0, entry_k1, groups, None)
-    monkeypatch.setattr(FrameContext, "bin_groups", entry_order)
+    bin_in_entry_order(monkeypatch)
     walked = wb.render(path, **kw)
     np.testing.assert_array_equal(nearest_first.rgba, walked.rgba)
     for name in ("Z", "motion"):

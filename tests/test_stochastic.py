@@ -5,7 +5,7 @@ import os
 
 import numpy as np
 import pytest
-from conftest import ACCEPTANCE
+from conftest import ACCEPTANCE, bin_in_entry_order
 from scenes import two_quads_stage
 
 import warp_blur as wb
@@ -97,16 +97,10 @@ def test_nearest_first_walk_stops_early_and_changes_no_sample(scene_path, monkey
     surface): the image equals that of lists in entry order walked to the end, on steeply and
     slightly tilted interpenetrating layers with a coplanar pair in front (scenes.tilted_layers_stage)."""
     from scenes import tilted_layers_stage
-
-    from warp_blur.methods.frame import FrameContext
     path = tilted_layers_stage(scene_path())
     kw = dict(frame=1, resolution=(96, 72), method="stochastic", samples=8, shadows="off")
     nearest_first = wb.render(path, **kw)
-    original_bin = FrameContext.bin_groups
-
-    def entry_order(self, positions, entry_tri, entry_k0, entry_k1, groups, near_depth=None):
-        return original_bin(self, positions, entry_tri, entry_k0, entry_k1, groups, None)
-    monkeypatch.setattr(FrameContext, "bin_groups", entry_order)
+    bin_in_entry_order(monkeypatch)
     walked = wb.render(path, **kw)
     assert nearest_first.rgba[..., 3].mean() > 0.05
     np.testing.assert_array_equal(nearest_first.rgba, walked.rgba)
