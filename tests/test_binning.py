@@ -7,7 +7,20 @@ import pytest
 
 import warp_blur as wb
 from warp_blur.core.camera import Projection
-from warp_blur.raster.binning import TILE_SIZE, band_misses_tiles, bin_entries, entry_corners
+from warp_blur.raster.binning import TILE_SIZE, bin_entries, entry_corners
+
+
+def band_misses_tiles(bands: np.ndarray, tx: np.ndarray, ty: np.ndarray, tile_size: int) -> np.ndarray:
+    """The slab rule of raster/tile_lists.py (slabs_reach), in NumPy: the reference its lists are
+    checked against. (P,) True where a slab (P, 4) of an entry (swept_bands) misses its tile (tx, ty)
+    altogether: no sample of the tile passes the kernels' slab test (box_rejects), so the pair
+    need not be listed. The tile's range along the slab's normal is its centre's ± the half
+    extent; a 1e-3 px slack keeps the answer on the kernels' side of float32 rounding."""
+    half = 0.5 * tile_size
+    nx, ny = bands[:, 0].astype(np.float64), bands[:, 1].astype(np.float64)
+    centre = nx * (tx * tile_size + half) + ny * (ty * tile_size + half)
+    reach = (np.abs(nx) + np.abs(ny)) * half + 1.0e-3
+    return (centre + reach < bands[:, 2]) | (centre - reach > bands[:, 3])
 
 
 def _kernel_band_keeps(bands: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:

@@ -79,8 +79,8 @@ def lower_sample(best_z: wp.array2d(dtype=float), best_e: wp.array2d(dtype=int),
     if left > 0:
         return left, float(wp.inf)
     farthest = float(far)
-    if old == wp.inf or old >= far:
-        # the farthest may have been this sample's: found again
+    if old >= far:
+        # the farthest may have been this sample's (far is inf until every sample has a hit): found again
         farthest = float(-wp.inf)
         for k in range(n):
             farthest = wp.max(farthest, best_z[tid, k])

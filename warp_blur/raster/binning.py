@@ -190,18 +190,6 @@ def clipped_hull_boxes(proj: Projection, pts: np.ndarray, margin: float) -> np.n
     return box
 
 
-def band_misses_tiles(bands: np.ndarray, tx: np.ndarray, ty: np.ndarray, tile_size: int) -> np.ndarray:
-    """(P,) True where a slab (P, 4) of an entry (swept_bands) misses its tile (tx, ty)
-    altogether: no sample of the tile passes the kernels' slab test (box_rejects), so the pair
-    need not be listed. The tile's range along the slab's normal is its centre's ± the half
-    extent; a 1e-3 px slack keeps the answer on the kernels' side of float32 rounding."""
-    half = 0.5 * tile_size
-    nx, ny = bands[:, 0].astype(np.float64), bands[:, 1].astype(np.float64)
-    centre = nx * (tx * tile_size + half) + ny * (ty * tile_size + half)
-    reach = (np.abs(nx) + np.abs(ny)) * half + 1.0e-3
-    return (centre + reach < bands[:, 2]) | (centre - reach > bands[:, 3])
-
-
 def tile_mask_pixels(tiles: np.ndarray, tile_size: int, width: int, height: int) -> np.ndarray:
     """Flat pixel indices (ascending, int64) of the screen tiles set in `tiles` (tiles_y, tiles_x)
     bool, in an image of width × height."""

@@ -6,7 +6,7 @@ lists took 23 ms a frame (48 ms with 8-pixel tiles), and accumulation bins once 
 Here one kernel counts each entry's tiles, a second writes them, and a third scatters the entries
 into their tiles' lists in a given entry order, so each list holds its entries in that order
 (the caller's order key, then entry index) — the lists NumPy's stable sort made, the same pairs:
-the slab test is the same float64 arithmetic (binning.band_misses_tiles).
+the slab test is the same float64 arithmetic as the NumPy form tests/test_binning.py keeps.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-#: slack (pixels) the slab test keeps on the kernels' side of float32 rounding (band_misses_tiles)
+#: slack (pixels) the slab test keeps on the sample kernels' side of float32 rounding (box_rejects)
 SLAB_SLACK = wp.constant(wp.float64(1.0e-3))
 
 
@@ -31,8 +31,9 @@ def tile_range(boxes: wp.array2d(dtype=wp.float64), e: int, tile_size: int, tile
 
 @wp.func
 def slabs_reach(bands: wp.array3d(dtype=wp.float32), e: int, tx: int, ty: int, tile_size: int) -> bool:
-    """False when one of entry e's slabs (nx, ny, lo, hi) misses tile (tx, ty) altogether
-    (band_misses_tiles: the tile's range along the slab's normal is its centre's ± half its extent)."""
+    """False when one of entry e's slabs (nx, ny, lo, hi) misses tile (tx, ty) altogether: no sample
+    of the tile passes the kernels' slab test (box_rejects), so the pair need not be listed. The
+    tile's range along the slab's normal is its centre's ± half its extent."""
     half = wp.float64(0.5) * wp.float64(tile_size)
     for k in range(bands.shape[1]):
         nx = wp.float64(bands[e, k, 0])
