@@ -194,3 +194,25 @@ def tilted_layers_stage(path: str) -> str:
         add_quad(stage, f"/World/{name}", 0.3, 0.3, material=mat, translate=(0.4, 0.3, 2.5))
     stage.GetRootLayer().Save()
     return path
+
+
+def skimming_stage(path: str) -> str:
+    """A still grey wall facing the camera at depth 10, with moving quads of other colours sliding
+    across it just in front (0.1-0.8% nearer: a walk that gave up on moving entries a little
+    before the still surface would miss them) and one just behind (never seen)."""
+    stage = new_stage(path)
+    add_camera(stage)
+    add_dome(stage)
+    wall = add_material(stage, "/World/Looks/Wall", emissive=(0.3, 0.3, 0.3))
+    add_quad(stage, "/World/Wall", 3.0, 2.0, material=wall)
+    for i, z in enumerate((0.01, 0.03, 0.05, 0.08, -0.02)):
+        mat = add_material(stage, f"/World/Looks/S{i}", emissive=(1.0 - 0.2 * i, 0.2 * i, 0.5))
+        y = -1.2 + 0.6 * i
+
+        def quad(shift: float, y=y, z=z) -> list:
+            return [(-0.5 + shift, y - 0.25, z), (0.5 + shift, y - 0.25, z), (0.5 + shift, y + 0.25, z),
+                    (-0.5 + shift, y + 0.25, z)]
+        add_mesh(stage, f"/World/S{i}", quad(0.0), [4], [0, 1, 2, 3], material=mat,
+                 points_samples={0.5: quad(-0.8), 1.5: quad(0.8)})
+    stage.GetRootLayer().Save()
+    return path

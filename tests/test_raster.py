@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 from conftest import bin_in_entry_order
-from scenes import emissive_quad_stage, lit_stage, tilted_layers_stage
+from scenes import emissive_quad_stage, lit_stage, skimming_stage, tilted_layers_stage
 
 import warp_blur as wb
+from warp_blur.output.metrics import max_abs
 
 
 def test_emissive_quad_over_dome_is_exact(scene_path):
@@ -129,3 +130,24 @@ def test_nearest_first_lists_stop_early_and_change_no_pixel(scene_path, monkeypa
     # the coplanar pair shows its first quad (the lower index), in both
     centre = nearest_first.rgba[nearest_first.aovs["Z"] == nearest_first.aovs["Z"].min()]
     assert len(centre) and (centre[:, 0] > 0.5).all() and (centre[:, 1] < 0.1).all()
+
+
+def test_analytic_nearest_first_lists_change_no_pixel(scene_path, monkeypatch):
+    """Analytic's walks over lists running nearest first (classify's search for the first moving
+    entry that reaches a sample stops at the first one wholly beyond the static surface; the
+    static walk and the fill's culling stop early too) give the image of lists in entry order
+    walked to the end, on tilted, interpenetrating moving layers behind a still coplanar pair, and
+    on quads sliding just in front of (and behind) a still wall: the same samples listed (interval count aside, which culling changes) and the same colours to
+    float rounding (the resolve sums the visible intervals in another order)."""
+    kw = dict(frame=1, resolution=(96, 72), method="analytic", aovs=(), shadows="off")
+    paths = (tilted_layers_stage(scene_path()), skimming_stage(scene_path()))
+    nearest_first = [wb.render(path, **kw) for path in paths]
+    bin_in_entry_order(monkeypatch)
+    for path, first in zip(paths, nearest_first):
+        walked = wb.render(path, **kw)
+        assert first.stats["pixels_with_motion"] == walked.stats["pixels_with_motion"]
+        assert 0.05 < first.stats["pixels_with_motion"] < 0.95
+        assert max_abs(first.rgba, walked.rgba) <= 1e-6
+    # the quads skimming the wall show over it; the one behind it never does
+    skim = nearest_first[1].rgba
+    assert (skim[..., 0] > 0.5).sum() > 50 and skim[..., 0].max() <= 1.0 + 1e-6

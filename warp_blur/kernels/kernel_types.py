@@ -66,6 +66,7 @@ class Geometry:
     tex: Textures                           # the frame's textures (for cutout opacity)
     shadow_free: wp.array(dtype=int)        # (E * NL,) [e NL + j] bit c: light j's maps cast no shadow on cell c of entry e (shadow_free.py); (1,) 0: none
     entry_edges: wp.array2d(dtype=wp.vec3)  # (E, 11) a moving entry's edge quadratics for rays from the eye (analytic/coverage.py), or (1, 1) unused
+    entry_corners: wp.array2d(dtype=wp.vec3)  # (E, 6) entry e's vertices a, b, c at k0 then at k1, side by side (analytic/moving.py), or (1, 1) unused
 
 
 @wp.struct

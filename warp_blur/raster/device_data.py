@@ -90,6 +90,7 @@ def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.nda
     g.clip_bits = 0   # the analytic method sets its time bits
     g.shadow_free = _no_flags(dev)   # set against a Shading's maps by shadows/free_entries.py
     g.entry_edges = wp.zeros((1, 1), dtype=wp.vec3, device=dev)   # filled by analytic/coverage.py's edge_table
+    g.entry_corners = wp.zeros((1, 1), dtype=wp.vec3, device=dev)   # filled by analytic/moving.py's corner_table
     g.entry_tri = device_array(entry_tri.astype(np.int32), int, dev)
     g.entry_k0 = device_array(entry_k0.astype(np.int32), int, dev)
     g.entry_k1 = device_array(entry_k1.astype(np.int32), int, dev)

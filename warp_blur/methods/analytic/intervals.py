@@ -266,17 +266,19 @@ def moving_intervals(view: View, geo: Geometry, moving_bins: Bins, tile: int, st
     """Count, and store below `limit`, the intervals of the moving entries at a sample, from the
     tile's list position `start` on (first_reaching found none before it), skipping those
     entirely behind the nearest static surface (depth z_static) or the culling slots (by their
-    nearest vertex, or by their plane's depth along the ray: counted in skipped[0]). The list
-    runs nearest first, so the walk ends at the first entry behind every slot."""
+    nearest vertex, or by their plane's depth along the ray: counted in skipped[0]). Where the
+    list runs nearest first (the frame's bins do), the walk ends at the first entry behind every
+    slot; in a list in entry order (tests' reference) such an entry is only skipped."""
     n = int(0)
     for i in range(start, moving_bins.tile_offsets[tile + 1]):
         e = moving_bins.tile_entries[i]
         if not box_rejects(moving_bins, e, sx, sy):
             m = entry_moving(geo, e)
             z_range = depth_range(m)
-            if all_hidden(occ, row, g, z_range[0]):
-                break
-            if may_show(view, m, z_static):
+            hidden = all_hidden(occ, row, g, z_range[0])
+            if hidden and moving_bins.near_sorted != 0:
+                break   # and so is every later entry
+            if not hidden and may_show(view, m, z_static):
                 z_slots = slots_depth(occ, row, g, whole, m.u0, m.u1, z_range[1])
                 if z_slots > -wp.inf and not behind(z_range[0], z_slots):
                     if plane_hidden(m, o, d, z_range, z_slots):
@@ -311,9 +313,15 @@ def entry_reaches(view: View, geo: Geometry, e: int, m: Moving, o: wp.vec3, d: w
 def first_reaching(view: View, geo: Geometry, moving_bins: Bins, tile: int, sx: float, sy: float, o: wp.vec3,
                    d: wp.vec3, z_static: float) -> int:
     """The tile-list position of the first moving entry that may have an interval at the sample,
-    or -1 when none can (moving_intervals is then 0), without shading anything."""
+    or -1 when none can (moving_intervals is then 0), without shading anything. Where the list
+    runs nearest first, the walk stops at the first entry wholly beyond the static surface: it
+    and every later one fail may_show (a perspective view's test; list_beyond's margin covers the
+    host's and the kernel's depths rounding apart)."""
+    stop = view.ortho == 0 and moving_bins.near_sorted != 0
     for i in range(moving_bins.tile_offsets[tile], moving_bins.tile_offsets[tile + 1]):
         e = moving_bins.tile_entries[i]
+        if stop and list_beyond(moving_bins, e, z_static):
+            return -1
         if not box_rejects(moving_bins, e, sx, sy):
             m = entry_moving(geo, e)
             if may_show(view, m, z_static):

@@ -25,23 +25,47 @@ class Moving:
 
 @wp.func
 def entry_moving(geo: Geometry, e: int) -> Moving:
-    """Entry e's triangle at both ends of its span (a static entry spans the whole shutter)."""
-    vi = geo.tri_vertices[geo.entry_tri[e]]
+    """Entry e's triangle at both ends of its span (a static entry spans the whole shutter): from
+    the frame's corner table where it has one (one contiguous row), else gathered from positions."""
     k0 = geo.entry_k0[e]
     k1 = geo.entry_k1[e]
     m = Moving()
-    m.a0 = geo.positions[k0, vi[0]]
-    m.b0 = geo.positions[k0, vi[1]]
-    m.c0 = geo.positions[k0, vi[2]]
-    m.a1 = geo.positions[k1, vi[0]]
-    m.b1 = geo.positions[k1, vi[1]]
-    m.c1 = geo.positions[k1, vi[2]]
+    if geo.entry_corners.shape[1] == 6:
+        m.a0 = geo.entry_corners[e, 0]
+        m.b0 = geo.entry_corners[e, 1]
+        m.c0 = geo.entry_corners[e, 2]
+        m.a1 = geo.entry_corners[e, 3]
+        m.b1 = geo.entry_corners[e, 4]
+        m.c1 = geo.entry_corners[e, 5]
+    else:
+        vi = geo.tri_vertices[geo.entry_tri[e]]
+        m.a0 = geo.positions[k0, vi[0]]
+        m.b0 = geo.positions[k0, vi[1]]
+        m.c0 = geo.positions[k0, vi[2]]
+        m.a1 = geo.positions[k1, vi[0]]
+        m.b1 = geo.positions[k1, vi[1]]
+        m.c1 = geo.positions[k1, vi[2]]
     m.u0 = 0.0
     m.u1 = 1.0
     if k0 != k1:
         m.u0 = float(k0) / float(geo.num_segments)
         m.u1 = float(k1) / float(geo.num_segments)
     return m
+
+
+@wp.kernel(enable_backward=False)
+def corner_table(positions: wp.array2d(dtype=wp.vec3), tri_vertices: wp.array(dtype=wp.vec3i),
+                 entry_tri: wp.array(dtype=int), entry_k0: wp.array(dtype=int), entry_k1: wp.array(dtype=int),
+                 # output
+                 table: wp.array2d(dtype=wp.vec3)):
+    """table[e] = entry e's vertices a, b, c at snapshot k0, then at k1 (camera space): what
+    entry_moving gathers from positions through two indirections, in one 72-byte row, for the
+    passes that read every listed entry at every pixel."""
+    e = wp.tid()
+    vi = tri_vertices[entry_tri[e]]
+    for j in range(3):
+        table[e, j] = positions[entry_k0[e], vi[j]]
+        table[e, 3 + j] = positions[entry_k1[e], vi[j]]
 
 
 @wp.func

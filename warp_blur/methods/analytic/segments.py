@@ -294,6 +294,8 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
 
 #: tests switch this off to compare coverage from the per-entry edge tables with coverage computed per ray
 EDGE_TABLES = True
+#: tests switch this off to compare entries read from the corner table with entries gathered from positions
+CORNER_TABLES = True
 
 
 def prepare_motion(ctx):
@@ -307,6 +309,7 @@ def prepare_motion(ctx):
     from ...raster.device_data import make_bins, make_geometry
     from ...shadows.free_entries import with_shadow_free
     from .coverage import EDGE_TABLE_WIDTH, edge_table
+    from .moving import corner_table
     s = ctx.settings
     with ctx.timed("segments"):
         plan = plan_motion(ctx.scene, ctx.proj, ctx.shutter.time, s.max_segments, s.resolved_segment_error_px,
@@ -325,6 +328,11 @@ def prepare_motion(ctx):
         geo.entry_edges = wp.zeros((len(plan.entry_tri), EDGE_TABLE_WIDTH), dtype=wp.vec3, device=ctx.device)
         wp.launch(edge_table, dim=len(plan.entry_tri), inputs=[geo.positions, geo.tri_vertices, geo.entry_tri,
                   geo.entry_k0, geo.entry_k1], outputs=[geo.entry_edges], device=ctx.device)
+    if CORNER_TABLES and len(plan.entry_tri):
+        # each entry's six corners in one row: the fill, classify and resolve read them per pixel
+        geo.entry_corners = wp.empty((len(plan.entry_tri), 6), dtype=wp.vec3, device=ctx.device)
+        wp.launch(corner_table, dim=len(plan.entry_tri), inputs=[geo.positions, geo.tri_vertices, geo.entry_tri,
+                  geo.entry_k0, geo.entry_k1], outputs=[geo.entry_corners], device=ctx.device)
     # fractional opacity changes with time slots, so its entries take the moving path even when still
     static = (plan.entry_k0 == plan.entry_k1) & ~ctx.scene.tri_fractional[plan.entry_tri]
     near = entry_near_depth(plan.positions, ctx.scene.tri_vertices, plan.entry_tri, plan.entry_k0, plan.entry_k1)
