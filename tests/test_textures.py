@@ -121,6 +121,34 @@ def test_udim_tiles_are_read_by_their_texture_coordinates(scene_path):
         np.testing.assert_allclose(cells["tr"], (0.5, 0.5, 0.5), atol=1e-3, err_msg=method)
 
 
+def test_a_renderer_shows_a_udim_tile_added_between_frames(scene_path):
+    """A Renderer keeps its material table across frames; a UDIM tile written beside the tiles
+    it found (1002, where the quad showed the node's fallback) is read at the next frame."""
+    from pxr import Gf, Sdf, UsdShade
+    path = scene_path()
+    folder = os.path.dirname(path)
+    Image.fromarray(np.full((8, 8, 3), (255, 0, 0), np.uint8)).save(os.path.join(folder, "tile.1001.png"))
+    stage = new_stage(path)
+    add_camera(stage, translate=(0, 0, 8), focal=24.0, haperture=36.0, vaperture=24.0, shutter=(0.0, 0.0))
+    mat = add_textured_material(stage, "/World/Looks/Tex", "./tile.<UDIM>.png")
+    UsdShade.Shader.Get(stage, "/World/Looks/Tex/Texture").CreateInput(
+        "fallback", Sdf.ValueTypeNames.Float4).Set(Gf.Vec4f(0.5, 0.5, 0.5, 1.0))
+    quad = add_quad(stage, "/World/Quad", 2.0, 1.5, material=mat, translate=(0, 0, 0))
+    set_st(quad, [(0, 0), (2, 0), (2, 1), (0, 1)])
+    stage.GetRootLayer().Save()
+    r = wb.Renderer(path, resolution=(W, H), settings=wb.RenderSettings(method="analytic", aovs=()))
+    before = r.render(1.0).rgba
+    np.testing.assert_allclose(before[32, 40, :3], (1, 0, 0), atol=1e-3)
+    np.testing.assert_allclose(before[32, 56, :3], (0.5, 0.5, 0.5), atol=1e-3)
+    again = r.render(1.0).rgba
+    assert r.materials.reused >= 1   # nothing changed: the table was kept
+    np.testing.assert_array_equal(again, before)
+    Image.fromarray(np.full((8, 8, 3), (0, 255, 0), np.uint8)).save(os.path.join(folder, "tile.1002.png"))
+    after = r.render(1.0).rgba
+    np.testing.assert_allclose(after[32, 40, :3], (1, 0, 0), atol=1e-3)
+    np.testing.assert_allclose(after[32, 56, :3], (0, 1, 0), atol=1e-3)
+
+
 def _transformed_step_stage(path: str, nodes) -> str:
     """A 4×2 emissive quad (s = (x + 2) / 4, t = (y + 1) / 2, from primvar `uvs`) reading a step
     texture (0 for s < 0.5, 1 above, repeating) through UsdTransform2d nodes, `nodes` listed

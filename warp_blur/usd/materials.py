@@ -202,8 +202,12 @@ def _udim_source(node: UsdShade.Shader, pattern: str, output: str, name: str, fr
     attr = _producer(node.GetInput("file"))[0]
     stack = attr.GetPropertyStack(Usd.TimeCode(frame)) if attr is not None else []
     layer = stack[0].layer if stack else node.GetPrim().GetStage().GetRootLayer()
-    tiles = [(path, int(tile)) for path, tile in UsdShade.UdimUtils.ResolveUdimTilePaths(pattern, layer)
-             if str(tile).isdigit()]
+
+    def find() -> list[tuple[str, int]]:
+        return [(path, int(tile)) for path, tile in UsdShade.UdimUtils.ResolveUdimTilePaths(pattern, layer)
+                if str(tile).isdigit()]
+    tiles = find()
+    textures.note_udim_set(find, tiles)   # a kept table is read again when the tiles found change
     space = str(_shader_input(node, "sourceColorSpace", frame, "auto"))
     base = textures.add_udim(tiles, space, fallback) if tiles else None
     if base is None:

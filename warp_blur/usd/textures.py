@@ -21,6 +21,7 @@ from __future__ import annotations
 import io
 import os
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -169,6 +170,7 @@ class TextureSet:
     _texture_index: dict = field(default_factory=dict)
     _binding_index: dict = field(default_factory=dict)   # row -> its index: equal rows are one binding
     _read: list = field(default_factory=list)            # (path, stamp) of every image file read or tried
+    _udim_sets: list = field(default_factory=list)       # (find, tiles found) of every UDIM set looked up
     _size: int = 0
     device_arrays: dict = field(default_factory=dict)   # device -> uploaded arrays
 
@@ -243,11 +245,17 @@ class TextureSet:
             self.device_arrays.clear()
         return self._binding_index[key]
 
+    def note_udim_set(self, find: Callable[[], list], found: list) -> None:
+        """Remember a UDIM set's tile lookup (find() -> [(resolved path, tile id)]) and the tiles
+        it found, so that files_changed notices a tile added (or removed) beside them."""
+        self._udim_sets.append((find, frozenset(found)))
+
     def files_changed(self) -> bool:
         """True when an image file read into the set, or tried and not found, has been written
-        (or removed) since: a set kept across frames (material_cache.py) is then read again. (A
-        UDIM tile added beside the tiles found is not looked for.)"""
-        return any(stamp != file_stamp(path) for path, stamp in self._read)
+        (or removed) since, or a UDIM set looked up now finds other tiles (one added beside those
+        found): a set kept across frames (material_cache.py) is then read again."""
+        return (any(stamp != file_stamp(path) for path, stamp in self._read)
+                or any(frozenset(find()) != found for find, found in self._udim_sets))
 
     @property
     def empty(self) -> bool:
