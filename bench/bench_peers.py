@@ -34,7 +34,7 @@ import sys
 from tqdm import tqdm
 
 sys.path.insert(0, os.path.dirname(__file__))
-from bench_tradeoff import TARGETS, time_to_error  # noqa: E402
+from bench_tradeoff import TARGETS, target_verdicts, time_to_error  # noqa: E402
 from common import OUT, ROOT, SCENES, pyplot, table, timed_median  # noqa: E402
 from peer_variants import emissive_variant  # noqa: E402
 from references import reference  # noqa: E402
@@ -47,8 +47,6 @@ from warp_blur.output.metrics import rmse  # noqa: E402
 
 SCENE_LIST = [("deep_overlap", 2, (512, 384)), ("rotation", 2, (640, 480)), ("large", 2, (1024, 768))]
 MISMATCH_RMSE = 0.01
-# issue 18's targets at RMSE 0.002 and 0.001: analytic at least this many times faster
-SPEEDUP_TARGETS = {"stochastic": 5.0, "accumulation": 10.0, "cycles": 30.0}
 
 
 def bpy_python(explicit: str | None) -> str | None:
@@ -138,18 +136,10 @@ def main() -> None:
             for m, pts in curves.items():
                 entry[f"t_{m}"] = time_to_error(pts, target)
             t_a = entry["t_analytic"]
-            verdicts = []
-            for m in curves:
-                if m == "analytic":
-                    continue
-                ratio = entry[f"t_{m}"] / t_a if t_a < math.inf else math.nan
-                entry[f"x_{m}"] = ratio
-                need = SPEEDUP_TARGETS[m] if target <= 2e-3 else 1.0
-                if entry[f"t_{m}"] == math.inf:
-                    verdicts.append(f"{m} never reached it (no ratio)")
-                else:
-                    verdicts.append(f"{m} {'met' if ratio >= need else 'MISSED'} (need {need:g}x)")
-            entry["targets"] = "; ".join(verdicts)
+            rivals = [m for m in curves if m != "analytic"]
+            for m in rivals:
+                entry[f"x_{m}"] = entry[f"t_{m}"] / t_a if t_a < math.inf else math.nan
+            entry["targets"] = target_verdicts(entry, rivals)
             summary.append(entry)
     bar.close()
     with open(os.path.join(OUT, "peers.json"), "w") as f:
