@@ -137,8 +137,9 @@ def test_analytic_nearest_first_lists_change_no_pixel(scene_path, monkeypatch):
     entry that reaches a sample stops at the first one wholly beyond the static surface; the
     static walk and the fill's culling stop early too) give the image of lists in entry order
     walked to the end, on tilted, interpenetrating moving layers behind a still coplanar pair, and
-    on quads sliding just in front of (and behind) a still wall: the same samples listed (interval count aside, which culling changes) and the same colours to
-    float rounding (the resolve sums the visible intervals in another order)."""
+    on quads sliding just in front of (and behind) a still wall: the same samples listed (interval
+    count aside, which culling changes) and the same colours to float rounding (the resolve sums
+    the visible intervals in another order)."""
     kw = dict(frame=1, resolution=(96, 72), method="analytic", aovs=(), shadows="off")
     paths = (tilted_layers_stage(scene_path()), skimming_stage(scene_path()))
     nearest_first = [wb.render(path, **kw) for path in paths]
@@ -148,6 +149,7 @@ def test_analytic_nearest_first_lists_change_no_pixel(scene_path, monkeypatch):
         assert first.stats["pixels_with_motion"] == walked.stats["pixels_with_motion"]
         assert 0.05 < first.stats["pixels_with_motion"] < 0.95
         assert max_abs(first.rgba, walked.rgba) <= 1e-6
-    # the quads skimming the wall show over it; the one behind it never does
+    # the quads skimming the wall show over it; the one behind it (rows 23-26) never does
     skim = nearest_first[1].rgba
-    assert (skim[..., 0] > 0.5).sum() > 50 and skim[..., 0].max() <= 1.0 + 1e-6
+    assert (skim[..., 0] > 0.5).sum() > 50
+    np.testing.assert_allclose(skim[23:27, 22:75, :3], 0.3, atol=1e-5)
