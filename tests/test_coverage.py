@@ -87,40 +87,37 @@ def test_edge_table_equals_the_edge_quadratics_per_ray():
     assert np.abs(a[:, 9:15] - b[:, 9:15]).max() <= 1e-5
 
 
-def test_renders_with_edge_tables_equal_renders_computing_edges_per_ray(monkeypatch):
-    """Demo (a spinning cube in 8 motion segments, a moving camera) and near_plane (triangles
-    crossing the near plane) with analytic and stochastic: coverage from the entries' edge tables
-    gives the image and interval count of coverage computed per ray."""
+#: scenes rendered with a table switched on and off: a spinning cube in 8 motion segments with a
+#: moving camera (analytic and stochastic) and triangles crossing the near plane (analytic)
+TABLE_CASES = [("demo.usda", 12.0, "analytic"), ("near_plane.usda", 2.0, "analytic"), ("demo.usda", 12.0, "stochastic")]
+
+
+def _switched_renders(monkeypatch, switch: str, **extra):
+    """(scene, render with segments.<switch> on, render with it off) for each of TABLE_CASES at 96x72."""
     import warp_blur.methods.analytic.segments as segments
-    cases = [("demo.usda", 12.0, "analytic"), ("near_plane.usda", 2.0, "analytic"), ("demo.usda", 12.0, "stochastic")]
-    for name, frame, method in cases:
-        kw = dict(frame=frame, resolution=(96, 72), method=method, aovs=(), shadows="off")
+    for name, frame, method in TABLE_CASES:
+        kw = dict(frame=frame, resolution=(96, 72), method=method, aovs=(), **extra)
         if method == "stochastic":
             kw["samples"] = 8
         path = os.path.join(SCENES, name)
-        monkeypatch.setattr(segments, "EDGE_TABLES", True)
-        tabled = wb.render(path, **kw)
-        monkeypatch.setattr(segments, "EDGE_TABLES", False)
-        per_ray = wb.render(path, **kw)
+        monkeypatch.setattr(segments, switch, True)
+        on = wb.render(path, **kw)
+        monkeypatch.setattr(segments, switch, False)
+        yield name, on, wb.render(path, **kw)
+
+
+def test_renders_with_edge_tables_equal_renders_computing_edges_per_ray(monkeypatch):
+    """TABLE_CASES with shadows off: coverage from the entries' edge tables gives the image and
+    interval count of coverage computed per ray."""
+    for name, tabled, per_ray in _switched_renders(monkeypatch, "EDGE_TABLES", shadows="off"):
         assert max_abs(tabled.rgba, per_ray.rgba) <= 1e-6, name
         assert tabled.stats.get("intervals") == per_ray.stats.get("intervals")
 
 
 def test_renders_with_corner_tables_equal_renders_gathering_positions(monkeypatch):
-    """Entries read from the frame's corner table (one row of six vertices an entry) give, bit
-    for bit, the image and interval count of entries gathered from the positions through their
-    triangle's vertex indices: demo (8 motion segments, a moving camera, shadows on) with analytic
-    and stochastic, and near_plane with analytic."""
-    import warp_blur.methods.analytic.segments as segments
-    cases = [("demo.usda", 12.0, "analytic"), ("near_plane.usda", 2.0, "analytic"), ("demo.usda", 12.0, "stochastic")]
-    for name, frame, method in cases:
-        kw = dict(frame=frame, resolution=(96, 72), method=method, aovs=())
-        if method == "stochastic":
-            kw["samples"] = 8
-        path = os.path.join(SCENES, name)
-        monkeypatch.setattr(segments, "CORNER_TABLES", True)
-        tabled = wb.render(path, **kw)
-        monkeypatch.setattr(segments, "CORNER_TABLES", False)
-        gathered = wb.render(path, **kw)
+    """TABLE_CASES with their shadows: entries read from the frame's corner table (one row of six
+    vertices an entry) give, bit for bit, the image and interval count of entries gathered from
+    the positions through their triangle's vertex indices."""
+    for name, tabled, gathered in _switched_renders(monkeypatch, "CORNER_TABLES"):
         np.testing.assert_array_equal(tabled.rgba, gathered.rgba, err_msg=name)
         assert tabled.stats.get("intervals") == gathered.stats.get("intervals")

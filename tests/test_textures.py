@@ -94,22 +94,29 @@ def test_every_method_reads_the_texture(scene_path):
         assert row.max() > 0.9 and row[r.rgba[16, :, 3] > 0.999].min() < 0.1, method
 
 
-def test_udim_tiles_are_read_by_their_texture_coordinates(scene_path):
-    """A quad with s over [0, 2] and t over [0, 2] reads tile 1001 (red) at the bottom left, 1002
-    (green) bottom right, 1011 (blue) top left; 1012 is missing and shows the node's fallback."""
+def _udim_quad_stage(path: str, tiles: dict, t_max: float) -> str:
+    """A still 4x3 quad seen whole by a sharp camera, reading `./tile.<UDIM>.png` with s over
+    [0, 2] and t over [0, t_max]; `tiles` maps tile ids to the rgb (0-255) of the 8x8 images
+    written beside the stage; missing tiles show the node's fallback (0.5 grey)."""
     from pxr import Gf, Sdf, UsdShade
-    path = scene_path()
     folder = os.path.dirname(path)
-    for tile, rgb in ((1001, (255, 0, 0)), (1002, (0, 255, 0)), (1011, (0, 0, 255))):
+    for tile, rgb in tiles.items():
         Image.fromarray(np.full((8, 8, 3), rgb, np.uint8)).save(os.path.join(folder, f"tile.{tile}.png"))
     stage = new_stage(path)
-    add_camera(stage, translate=(0, 0, 8), focal=24.0, haperture=36.0, vaperture=24.0)
+    add_camera(stage, translate=(0, 0, 8), focal=24.0, haperture=36.0, vaperture=24.0, shutter=(0.0, 0.0))
     mat = add_textured_material(stage, "/World/Looks/Tex", "./tile.<UDIM>.png")
     UsdShade.Shader.Get(stage, "/World/Looks/Tex/Texture").CreateInput(
         "fallback", Sdf.ValueTypeNames.Float4).Set(Gf.Vec4f(0.5, 0.5, 0.5, 1.0))
     quad = add_quad(stage, "/World/Quad", 2.0, 1.5, material=mat, translate=(0, 0, 0))
-    set_st(quad, [(0, 0), (2, 0), (2, 2), (0, 2)])
+    set_st(quad, [(0, 0), (2, 0), (2, t_max), (0, t_max)])
     stage.GetRootLayer().Save()
+    return path
+
+
+def test_udim_tiles_are_read_by_their_texture_coordinates(scene_path):
+    """A quad with s over [0, 2] and t over [0, 2] reads tile 1001 (red) at the bottom left, 1002
+    (green) bottom right, 1011 (blue) top left; 1012 is missing and shows the node's fallback."""
+    path = _udim_quad_stage(scene_path(), {1001: (255, 0, 0), 1002: (0, 255, 0), 1011: (0, 0, 255)}, 2.0)
     for method in ("accumulation", "analytic"):
         r = wb.render(path, frame=1, method=method, samples=1, resolution=(W, H), shutter=(0.0, 0.0))
         # the quad spans columns 32..64 and rows 20..44; sample each quarter's middle
@@ -124,18 +131,8 @@ def test_udim_tiles_are_read_by_their_texture_coordinates(scene_path):
 def test_a_renderer_shows_a_udim_tile_added_between_frames(scene_path):
     """A Renderer keeps its material table across frames; a UDIM tile written beside the tiles
     it found (1002, where the quad showed the node's fallback) is read at the next frame."""
-    from pxr import Gf, Sdf, UsdShade
-    path = scene_path()
+    path = _udim_quad_stage(scene_path(), {1001: (255, 0, 0)}, 1.0)
     folder = os.path.dirname(path)
-    Image.fromarray(np.full((8, 8, 3), (255, 0, 0), np.uint8)).save(os.path.join(folder, "tile.1001.png"))
-    stage = new_stage(path)
-    add_camera(stage, translate=(0, 0, 8), focal=24.0, haperture=36.0, vaperture=24.0, shutter=(0.0, 0.0))
-    mat = add_textured_material(stage, "/World/Looks/Tex", "./tile.<UDIM>.png")
-    UsdShade.Shader.Get(stage, "/World/Looks/Tex/Texture").CreateInput(
-        "fallback", Sdf.ValueTypeNames.Float4).Set(Gf.Vec4f(0.5, 0.5, 0.5, 1.0))
-    quad = add_quad(stage, "/World/Quad", 2.0, 1.5, material=mat, translate=(0, 0, 0))
-    set_st(quad, [(0, 0), (2, 0), (2, 1), (0, 1)])
-    stage.GetRootLayer().Save()
     r = wb.Renderer(path, resolution=(W, H), settings=wb.RenderSettings(method="analytic", aovs=()))
     before = r.render(1.0).rgba
     np.testing.assert_allclose(before[32, 40, :3], (1, 0, 0), atol=1e-3)
