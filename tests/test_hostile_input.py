@@ -254,6 +254,28 @@ def test_a_frame_too_large_for_memory_is_refused_before_any_work(tmp_path, scene
     assert frame_bytes("analytic", 100, 100, 2) == 4 * frame_bytes("analytic", 100, 100, 1)
 
 
+def test_the_memory_estimate_counts_the_entry_tables_of_a_frame(scene_path, monkeypatch):
+    """frame_bytes' per-triangle share for analytic and stochastic, beyond accumulation's, holds
+    the entry tables a frame of theirs allocates (edge and corner tables), read off a render."""
+    import warp_blur.methods.analytic as analytic
+    import warp_blur.methods.stochastic as stochastic
+    from warp_blur.core.memory import frame_bytes
+    for module, method in ((analytic, "analytic"), (stochastic, "stochastic")):
+        seen = []
+        original = module.prepare_motion
+
+        def recording(ctx, original=original, seen=seen):
+            plan, geo, *rest = original(ctx)
+            seen.append(((geo.entry_edges.capacity + geo.entry_corners.capacity), len(plan.entry_tri)))
+            return (plan, geo, *rest)
+        monkeypatch.setattr(module, "prepare_motion", recording)
+        wb.render(_quad(scene_path), frame=1, resolution=(32, 24), method=method, samples=4, aovs=())
+        table_bytes, entries = seen[0]
+        extra = (frame_bytes(method, 1, 1, 1, 1000) - frame_bytes(method, 1, 1, 1, 0)
+                 - frame_bytes("accumulation", 1, 1, 1, 1000) + frame_bytes("accumulation", 1, 1, 1, 0)) / 1000
+        assert entries > 0 and extra >= table_bytes / entries, method
+
+
 CUBE_STAGE = PRELUDE + """    def Cube "Box"
     {
         SIZE

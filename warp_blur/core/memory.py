@@ -17,12 +17,17 @@ from .errors import SettingsError
 BYTES_PER_PIXEL = {"accumulation": 32, "stochastic": 64, "analytic": 384, "velocity": 320}
 #: Device tables per triangle (positions over the shutter, shading corners, bins).
 BYTES_PER_TRIANGLE = 160
+#: Tables per entry of the methods that plan motion (analytic, stochastic): the edge table (11
+#: vec3, methods/analytic/coverage.py) and the corner table (6 vec3, methods/analytic/moving.py).
+#: A triangle is at least one entry (one per motion segment where it moves).
+ENTRY_TABLE_BYTES = {"analytic": (11 + 6) * 12, "stochastic": (11 + 6) * 12}
 
 
 def frame_bytes(method: str, width: int, height: int, spatial_samples: int = 1, triangles: int = 0) -> int:
-    """Estimated peak bytes of one frame's buffers (pixels x sub-samples, plus triangle tables)."""
+    """Estimated peak bytes of one frame's buffers (pixels x sub-samples, plus triangle tables,
+    with each triangle counted as one entry)."""
     return int(BYTES_PER_PIXEL[method] * width * height * max(1, spatial_samples) ** 2
-               + BYTES_PER_TRIANGLE * triangles)
+               + (BYTES_PER_TRIANGLE + ENTRY_TABLE_BYTES.get(method, 0)) * triangles)
 
 
 def physical_memory_bytes() -> int | None:
