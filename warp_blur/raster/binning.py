@@ -203,10 +203,7 @@ def entry_near_depth(positions: np.ndarray, tri_vertices: np.ndarray, entry_tri:
     lower bound of its depth anywhere over the span, the key that orders tile lists front first."""
     if len(entry_tri) == 0:
         return np.zeros(0)
-    vi = tri_vertices[entry_tri]                                            # (E, 3)
-    z0 = -positions[entry_k0[:, None], vi, 2]
-    z1 = -positions[entry_k1[:, None], vi, 2]
-    return np.minimum(z0.min(axis=1), z1.min(axis=1))
+    return -entry_corners(positions, tri_vertices, entry_tri, entry_k0, entry_k1)[..., 2].max(axis=0)
 
 
 def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size: int = TILE_SIZE,
