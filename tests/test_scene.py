@@ -115,6 +115,52 @@ def test_invalid_geometry_is_named_or_skipped(scene_path):
     assert [u.path for u in scene.units] == ["/World/Good"]
 
 
+def test_a_negative_face_vertex_count_is_named_not_wrapped_around(scene_path):
+    """Counts [-3, 6] add up to six indices, but no face has -3 corners: named, not read with
+    the second face starting three indices before the first."""
+    from authoring import add_camera, add_mesh, new_stage
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    add_mesh(stage, "/World/Negative", [(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)], [-3, 6], [0, 1, 2, 1, 3, 2])
+    add_mesh(stage, "/World/Good", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [3], [0, 1, 2])
+    stage.GetRootLayer().Save()
+    with pytest.raises(InvalidGeometryError, match="/World/Negative: negative faceVertexCount -3"):
+        _scene(path)
+    _, _, scene = _scene(path, skip_invalid=True)
+    assert [u.path for u in scene.units] == ["/World/Good"]
+
+
+def test_unresolved_references_and_payloads_are_warned_about_once_and_the_rest_renders(tmp_path, scene_path):
+    from authoring import add_camera, add_mesh, new_stage
+
+    from warp_blur.core import log
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    add_mesh(stage, "/World/Good", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [3], [0, 1, 2])
+    stage.DefinePrim("/World/Ref", "Xform").GetReferences().AddReference(str(tmp_path / "gone.usda"))
+    stage.DefinePrim("/World/Pay", "Xform").GetPayloads().AddPayload(str(tmp_path / "gone_too.usda"))
+    stage.GetRootLayer().Save()
+    log.reset()
+    _, _, scene = _scene(path)
+    assert [u.path for u in scene.units] == ["/World/Good"]
+    said = [w for w in log.take_warnings() if "composition" in w]
+    assert len(said) == 1 and "2 composition errors" in said[0], said
+    assert "gone.usda" in said[0] and "gone_too.usda" in said[0] and "\n" not in said[0]
+    _scene(path)
+    assert not [w for w in log.take_warnings() if "composition" in w]   # once per stage
+
+
+def test_a_stage_that_composes_cleanly_is_not_warned_about():
+    import os
+
+    from warp_blur.core import log
+    log.reset()
+    _scene(os.path.join(os.path.dirname(os.path.dirname(__file__)), "usd_scenes", "demo.usda"))
+    assert not [w for w in log.take_warnings() if "composition" in w]
+
+
 def test_up_axis_z_and_units_render_as_authored(scene_path):
     from authoring import add_camera, add_mesh, new_stage
     path = scene_path()

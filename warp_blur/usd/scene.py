@@ -179,6 +179,8 @@ class Scene:
         points = mesh.GetPointsAttr().Get(t)
         npts = 0 if points is None else len(points)
         path = str(prim.GetPath())
+        if len(counts) and counts.min() < 0:
+            return None if self._invalid(path, f"negative faceVertexCount {int(counts.min())}") else None
         if counts.sum() != len(indices):
             return None if self._invalid(path, "faceVertexCounts do not add up to faceVertexIndices") else None
         if len(indices) and (indices.min() < 0 or indices.max() >= npts):

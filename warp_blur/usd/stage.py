@@ -34,7 +34,22 @@ def open_stage(path: str) -> Usd.Stage:
         raise StageError(f"cannot read stage {path}: {usd_error_detail(exc)}") from None
     if stage is None:
         raise StageError(f"cannot read stage {path}")
+    warn_composition_errors(stage, path)
     return stage
+
+
+def warn_composition_errors(stage: Usd.Stage, path: str, shown: int = 2) -> None:
+    """One warning naming the stage's composition errors (a reference, payload or sublayer that
+    cannot be opened, a cycle): what they bring in is missing from the render, which still goes
+    on, as usdview's would. The first `shown` distinct messages are quoted, the rest counted."""
+    messages = list(dict.fromkeys(" ".join(str(err).split()).rstrip(".") for err in stage.GetCompositionErrors()))
+    if not messages:
+        return
+    more = f" (and {len(messages) - shown} more)" if len(messages) > shown else ""
+    noun = "error" if len(messages) == 1 else "errors"
+    warn_once(f"composition:{os.path.abspath(path)}",
+              f"{path}: {len(messages)} composition {noun}, rendering without what they would bring in: "
+              + "; ".join(messages[:shown]) + more)
 
 
 def usd_error_detail(exc: BaseException) -> str:
