@@ -46,3 +46,8 @@ def corner_primvar(prim: Usd.Prim, name: str, time: Usd.TimeCode, tris: np.ndarr
     warn_once(f"primvar-fit:{path}:{name}", f"{path}: primvar {name} ({interp}, {len(vals)} values) does not "
                                              f"match the topology; ignored")
     return None
+
+
+def grey_corners(n: int) -> np.ndarray:
+    """(n, 3, 3) float32 mid grey, UsdImaging's displayColor when none is authored."""
+    return np.full((n, 3, 3), 0.5, np.float32)

@@ -27,7 +27,7 @@ from .normals import authored_normals_fn, split_normals_fn, transform_normals, v
 from .subdivision import mesh_refinement, refined_surface_primvars, refined_triangles, screen_level, stage_level
 from .skinning import Skins, skinned_points_fn
 from .stage import Shutter
-from .primvars import corner_primvar
+from .primvars import corner_primvar, grey_corners
 from .tessellate import tessellate_gprim, triangulate_corners
 from .units import (GeomUnit, SmallUnitGroup, UnitRows, held_points, prim_transform_fn, prototype_unit_name,
                     small_unit_groups)
@@ -55,11 +55,6 @@ class Snapshot:
     lights: np.ndarray
     cam_from_world: np.ndarray
     fraction: float | None = None   # the shutter fraction it was taken at (FrameContext.snapshot)
-
-
-def _grey_corners(n: int) -> np.ndarray:
-    """(n, 3, 3) float32 mid grey, UsdImaging's displayColor when none is authored."""
-    return np.full((n, 3, 3), 0.5, np.float32)
 
 
 class Scene:
@@ -179,13 +174,12 @@ class Scene:
         points = mesh.GetPointsAttr().Get(t)
         npts = 0 if points is None else len(points)
         path = str(prim.GetPath())
-        if len(counts) and counts.min() < 0:
-            return None if self._invalid(path, f"negative faceVertexCount {int(counts.min())}") else None
-        if counts.sum() != len(indices):
-            return None if self._invalid(path, "faceVertexCounts do not add up to faceVertexIndices") else None
-        if len(indices) and (indices.min() < 0 or indices.max() >= npts):
-            bad = int(indices[(indices < 0) | (indices >= npts)][0])
-            return None if self._invalid(path, f"face index {bad} out of range (mesh has {npts} points)") else None
+        bad = indices[(indices < 0) | (indices >= npts)]
+        problem = (f"negative faceVertexCount {int(counts.min())}" if len(counts) and counts.min() < 0 else
+                   "faceVertexCounts do not add up to faceVertexIndices" if counts.sum() != len(indices) else
+                   f"face index {int(bad[0])} out of range (mesh has {npts} points)" if len(bad) else None)
+        if problem is not None:
+            return None if self._invalid(path, problem) else None
         tris, face_of_tri, corners = triangulate_corners(counts, indices, holes, left)
         scheme = mesh.GetSubdivisionSchemeAttr().Get(t)
         smooth = scheme not in (None, UsdGeom.Tokens.none)
@@ -205,7 +199,7 @@ class Scene:
         if reads.color:
             colors = corner_primvar(prim, reads.color, t, tris, face_of_tri, corners, 3)
         if colors is None:
-            colors = _grey_corners(len(tris))
+            colors = grey_corners(len(tris))
         uvs = None
         if reads.st:
             uvs = corner_primvar(prim, reads.st, t, tris, face_of_tri, corners, 2)
@@ -316,7 +310,7 @@ class Scene:
         if refined is not None:
             colors, uvs, opacity = refined_surface_primvars(prim, t, self.materials.reads[material], counts,
                                                             indices, face_of_tri, corner_weights)
-            colors = colors if colors is not None else _grey_corners(len(tris))
+            colors = colors if colors is not None else grey_corners(len(tris))
         else:
             colors, uvs, opacity = self._surface_primvars(prim, t, material, tris, face_of_tri, corners)
         if tri_materials is not None:   # each subset's triangles read what their own material reads
@@ -516,7 +510,8 @@ class Scene:
 
     def _small_unit_groups(self) -> list[SmallUnitGroup]:
         if self._groups is None:
-            self._groups = small_unit_groups(self.units, self.unit_vertex_offsets)
+            self._groups = small_unit_groups(self.units, self.unit_vertex_offsets, self.frame,
+                                             (self.shutter.open, self.shutter.close), self._transform_verdicts)
             self._unit_grouped = np.zeros(len(self.units), bool)
             for g in self._groups:
                 self._unit_grouped[g.units] = True

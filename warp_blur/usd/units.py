@@ -13,6 +13,7 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom
 
 from .stage import prims_visible, transform_may_vary, visibility_varies
+from .xform_ops import LinearTransforms
 
 
 def prototype_unit_name(instancer: str, proto_path: Sdf.Path, sub_path: Sdf.Path) -> str:
@@ -71,6 +72,7 @@ def prim_transform_fn(prim: Usd.Prim, memo: dict | None = None) -> Callable[[flo
     if transform_may_vary(prim, memo):
         def transforms_at(time: float, cache: UsdGeom.XformCache) -> np.ndarray:
             return np.array(cache.GetLocalToWorldTransform(prim), np.float64)[None]
+        transforms_at.prim = prim   # the prim's own transform: SmallUnitGroup may batch it (xform_ops.py)
         return transforms_at
     held: list[np.ndarray] = []
 
@@ -166,6 +168,9 @@ class SmallUnitGroup:
     held: tuple | None = None     # still groups: ((U, 4, 4) local-to-world, (V_group, 3) local points)
     held_visible: np.ndarray | None = None   # (U,) bool, once known that no unit's visibility may vary
     last_placed: tuple | None = None         # still groups: (camera matrix bytes, (V_group, 3) block)
+    window: tuple | None = None   # (lo, hi) USD times the frame's snapshots ask of it (set by the scene)
+    memo: dict | None = None      # the scene's transform_may_vary verdicts
+    linear: tuple | None = None   # moving groups: (member positions, LinearTransforms of their prims)
 
     def place(self, units: list, t_prim: float, cache, cam_from_world: np.ndarray, positions: np.ndarray,
               unit_visible: np.ndarray) -> None:
@@ -183,7 +188,7 @@ class SmallUnitGroup:
             if self.held is not None:
                 local, pts = self.held
             else:
-                local = np.concatenate([u.transforms_at(t_prim, cache) for u in members])
+                local = self._moving_transforms(members, t_prim, cache)
                 pts = np.concatenate([u.points_at(t_prim) for u in members])
             mv = (local @ cam_from_world[None])[self.slot_of_vertex]                # (V_group, 4, 4)
             block = (pts[:, None, :] @ mv[:, :3, :3])[:, 0] + mv[:, 3, :3]
@@ -200,10 +205,34 @@ class SmallUnitGroup:
         unit_visible[self.units] = visible
 
 
-def small_unit_groups(units: list, vertex_offsets: list[int]) -> list[SmallUnitGroup]:
+    def _moving_transforms(self, members: list, t_prim: float, cache) -> np.ndarray:
+        """(U, 4, 4) local-to-world of the members at USD time t_prim: those whose xformOps are
+        linear over the window from one batched pass (xform_ops.py), the others from USD."""
+        if self.linear is None and self.window is not None:
+            prims = [getattr(u.transforms_at, "prim", None) for u in members]
+            rows = np.array([i for i, p in enumerate(prims) if p is not None], np.int64)
+            batch = LinearTransforms([prims[i] for i in rows], *self.window, {} if self.memo is None else self.memo,
+                                     cache)
+            self.linear = (rows[batch.placed], np.setdiff1d(np.arange(len(members)), rows[batch.placed]), batch)
+        if self.linear is None or not self.linear[2].covers(t_prim):
+            return np.concatenate([u.transforms_at(t_prim, cache) for u in members])
+        placed, rest, batch = self.linear
+        out = np.empty((len(batch.placed), 4, 4))
+        batch.at(t_prim, out)
+        local = np.empty((len(members), 4, 4))
+        local[placed] = out[batch.placed]
+        for i in rest:
+            local[i] = members[i].transforms_at(t_prim, cache)[0]
+        return local
+
+
+def small_unit_groups(units: list, vertex_offsets: list[int], frame: float | None = None,
+                      shutter: tuple[float, float] | None = None, memo: dict | None = None) -> list[SmallUnitGroup]:
     """Groups of at least two single-instance units of at most SMALL_UNIT_POINTS points each, one
     group per motion blur scale and stillness (held transform and points); the other units are
-    placed one by one."""
+    placed one by one. frame, shutter (open, close USD times) give each group the window of USD
+    times its snapshots ask for (t_prim: the shutter scaled about the frame by its blur scale);
+    memo: the scene's transform_may_vary verdicts."""
     by_key: dict[tuple[float, bool], list[int]] = {}
     for ui, u in enumerate(units):
         if u.num_instances == 1 and u.num_points <= SMALL_UNIT_POINTS:
@@ -216,5 +245,9 @@ def small_unit_groups(units: list, vertex_offsets: list[int]) -> list[SmallUnitG
         counts = np.array([units[ui].num_points for ui in members])
         rows = np.concatenate([np.arange(vertex_offsets[ui], vertex_offsets[ui] + units[ui].num_points)
                                for ui in members])
-        groups.append(SmallUnitGroup(scale, members, rows, np.repeat(np.arange(len(members)), counts), still))
+        group = SmallUnitGroup(scale, members, rows, np.repeat(np.arange(len(members)), counts), still)
+        if frame is not None and shutter is not None:
+            ends = sorted(frame + (t - frame) * scale for t in shutter)
+            group.window, group.memo = (ends[0], ends[1]), memo
+        groups.append(group)
     return groups

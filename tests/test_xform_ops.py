@@ -1,0 +1,122 @@
+"""Batched xformOp transforms (usd/xform_ops.py) against UsdGeom.XformCache, the oracle: random op
+stacks of every supported kind, animated between samples outside the window, at many times."""
+
+import numpy as np
+import pytest
+from pxr import Gf, Usd, UsdGeom
+
+from warp_blur.usd.xform_ops import LinearTransforms
+
+P = UsdGeom.XformOp.PrecisionDouble
+F = UsdGeom.XformOp.PrecisionFloat
+
+
+def _random_stack(xf: UsdGeom.Xformable, rng: np.random.Generator, precision) -> None:
+    """Three to six ops of random kinds, each sampled at times 0 and 10 (or held)."""
+    kinds = ["translate", "scale", "rotateX", "rotateY", "rotateZ", "rotateXYZ", "rotateZYX", "rotateYXZ",
+             "orient", "transform", "translateX", "scaleZ", "pivot"]
+    for n, kind in enumerate(rng.choice(kinds, size=rng.integers(3, 7))):
+        suffix = f"s{n}"
+        animated = rng.random() < 0.8
+        if kind == "pivot":
+            op = xf.AddTranslateOp(precision, suffix)
+            op.Set(Gf.Vec3d(*rng.normal(size=3)) if precision == P else Gf.Vec3f(*rng.normal(size=3)))
+            continue
+        if kind == "orient":
+            op = xf.AddOrientOp(precision, suffix)
+            for t in (0.0, 10.0) if animated else (0.0,):
+                q = rng.normal(size=4)
+                q /= np.linalg.norm(q)
+                op.Set(Gf.Quatd(*q) if precision == P else Gf.Quatf(*q), t)
+            continue
+        if kind == "transform":
+            op = xf.AddTransformOp(P, suffix)
+            for t in (0.0, 10.0) if animated else (0.0,):
+                m = Gf.Matrix4d(1.0)
+                m.SetRotate(Gf.Rotation(Gf.Vec3d(*rng.normal(size=3)), float(rng.uniform(-180, 180))))
+                m.SetTranslateOnly(Gf.Vec3d(*rng.normal(size=3)))
+                op.Set(m, t)
+            continue
+        add = {"translate": xf.AddTranslateOp, "scale": xf.AddScaleOp, "rotateX": xf.AddRotateXOp,
+               "rotateY": xf.AddRotateYOp, "rotateZ": xf.AddRotateZOp, "rotateXYZ": xf.AddRotateXYZOp,
+               "rotateZYX": xf.AddRotateZYXOp, "rotateYXZ": xf.AddRotateYXZOp,
+               "translateX": xf.AddTranslateXOp, "scaleZ": xf.AddScaleZOp}[kind]
+        op = add(precision, suffix)
+        scalar = kind in ("rotateX", "rotateY", "rotateZ", "translateX", "scaleZ")
+        for t in (0.0, 10.0) if animated else (0.0,):
+            v = rng.uniform(0.5, 2.0, size=3) if kind.startswith("scale") else rng.uniform(-200, 200, size=3)
+            if scalar:
+                op.Set(float(v[0]), t)
+            else:
+                op.Set(Gf.Vec3d(*v) if precision == P else Gf.Vec3f(*v), t)
+    # a pivot's inverse, as USD's common API writes one
+    pivots = [op for op in xf.GetOrderedXformOps() if op.GetOpType() == UsdGeom.XformOp.TypeTranslate
+              and not op.GetAttr().ValueMightBeTimeVarying()]
+    if pivots:
+        xf.AddTranslateOp(precision, pivots[0].GetOpName().split(":")[-1], isInverseOp=True)
+
+
+@pytest.mark.parametrize("lo,hi", [(4.25, 4.75), (0.0, 10.0), (-1.0, 0.0)])
+@pytest.mark.parametrize("precision,rtol", [(P, 1e-11), (F, 3e-6)])
+def test_batched_transforms_equal_usdgeoms_at_every_time(precision, rtol, lo, hi):
+    rng = np.random.default_rng(7)
+    stage = Usd.Stage.CreateInMemory()
+    parent = UsdGeom.Xform.Define(stage, "/Parent")
+    parent.AddTranslateOp().Set(Gf.Vec3d(3, -2, 1))
+    parent.AddRotateYOp().Set(30.0)
+    prims = []
+    for i in range(60):
+        path = f"/Parent/P{i}" if i % 3 else f"/Root{i}"
+        xf = UsdGeom.Xform.Define(stage, path)
+        _random_stack(xf, rng, precision)
+        prims.append(xf.GetPrim())
+        if i % 4 == 0:   # a gprim under an animated Xform: its parent's ops are its motion
+            prims.append(UsdGeom.Cube.Define(stage, f"{path}/Cube").GetPrim())
+        elif i % 4 == 1:   # a scope between, then a child with its own animated ops
+            stage.DefinePrim(f"{path}/Scope", "Scope")
+            child = UsdGeom.Xform.Define(stage, f"{path}/Scope/Child")
+            _random_stack(child, rng, precision)
+            prims.append(child.GetPrim())
+    batch = LinearTransforms(prims, lo, hi, {}, UsdGeom.XformCache(Usd.TimeCode(lo)))
+    assert batch.placed.all()
+    assert len(batch.batches) > 10   # many signatures, each its own pass
+    for t in np.linspace(lo, hi, 7):
+        out = np.zeros((len(prims), 4, 4))
+        batch.at(t, out)
+        cache = UsdGeom.XformCache(Usd.TimeCode(t))
+        expected = np.array([np.array(cache.GetLocalToWorldTransform(p)) for p in prims])
+        scale = np.abs(expected).max(axis=(1, 2), keepdims=True)
+        np.testing.assert_allclose(out / scale, expected / scale, rtol=0, atol=rtol)
+
+
+def test_what_is_not_linear_over_the_window_is_left_to_usd():
+    stage = Usd.Stage.CreateInMemory()
+    inside = UsdGeom.Xform.Define(stage, "/Inside")            # a sample inside the window
+    op = inside.AddTranslateOp()
+    for t, x in ((0.0, 0.0), (4.5, 5.0), (10.0, 0.0)):
+        op.Set(Gf.Vec3d(x, 0, 0), t)
+    moving_parent = UsdGeom.Xform.Define(stage, "/Moving")     # an animated parent, sampled inside
+    op = moving_parent.AddTranslateOp()
+    for t, x in ((0.0, 0.0), (4.6, 1.0), (10.0, 0.0)):
+        op.Set(Gf.Vec3d(x, 0, 0), t)
+    child = UsdGeom.Xform.Define(stage, "/Moving/Child")
+    child.AddRotateZOp().Set(10.0, 0.0)
+    child.GetOrderedXformOps()[0].Set(20.0, 10.0)
+    singular = UsdGeom.Xform.Define(stage, "/Singular")         # an inverse scale: USD's call
+    scale = singular.AddScaleOp(opSuffix="s")
+    scale.Set(Gf.Vec3f(1, 1, 1), 0.0)
+    scale.Set(Gf.Vec3f(0, 2, 2), 10.0)
+    singular.AddScaleOp(opSuffix="s", isInverseOp=True)
+    good = UsdGeom.Xform.Define(stage, "/Good")
+    good.AddTranslateOp().Set(Gf.Vec3d(0, 0, 0), 0.0)
+    good.GetOrderedXformOps()[0].Set(Gf.Vec3d(0, 10, 0), 10.0)
+    prims = [p.GetPrim() for p in (inside, child, singular, good)]
+    batch = LinearTransforms(prims, 4.25, 4.75, {}, UsdGeom.XformCache(Usd.TimeCode(4.5)))
+    assert batch.placed.tolist() == [False, False, False, True]
+    stage.SetInterpolationType(Usd.InterpolationTypeHeld)   # values step at samples: none is linear
+    assert not LinearTransforms(prims, 4.25, 4.75, {}, UsdGeom.XformCache(Usd.TimeCode(4.5))).placed.any()
+    stage.SetInterpolationType(Usd.InterpolationTypeLinear)
+    out = np.full((4, 4, 4), 7.0)
+    batch.at(4.5, out)
+    assert (out[:3] == 7.0).all()   # rows it did not place are left alone
+    np.testing.assert_allclose(out[3, 3, :3], [0, 4.5, 0], atol=1e-12)
