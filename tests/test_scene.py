@@ -419,6 +419,8 @@ def test_small_prims_placed_together_agree_with_usdgeom_and_with_one_by_one(scen
         np.testing.assert_allclose(snap.positions, alone.positions, rtol=1e-15, atol=1e-15)
         assert np.array_equal(snap.tri_visible, alone.tri_visible)
     assert not scene.snapshot(1.3).tri_visible[scene.tri_unit == 4].any()    # Q4 hides at 1.2
+    # every quad's ops are linear over the shutter: the batched transforms (xform_ops.py) placed them
+    assert all(g.linear is not None and len(g.linear[0]) == len(g.units) for g in groups)
 
 
 def test_still_prims_are_read_once_a_frame_and_placed_like_usdgeom(scene_path):
