@@ -4,6 +4,7 @@ against the chords of a level, and what that decides."""
 import math
 
 import numpy as np
+import pytest
 from scenes import emissive_quad_stage
 
 import warp_blur as wb
@@ -58,3 +59,51 @@ def test_levels_above_two_segments_are_checked_at_their_midpoints(scene_path, mo
 def test_checks_per_segment():
     """Quarter points (4 parts) up to QUARTER_CHECKED_SEGMENTS segments, midpoints (2) above."""
     assert [segments.checks_per_segment(k) for k in (1, 2, 4, 8, 64)] == [4, 4, 2, 2, 2]
+
+
+def _entries_unit_by_unit(tri_unit, tri_vertices, seg_of_unit, k_global, vis, vertex_static):
+    """plan_entries' reference: the loop over units it replaced (one pass over all triangles per unit)."""
+    tri_e, k0_e, k1_e = [], [], []
+    tri_ids = np.arange(len(tri_unit), dtype=np.int32)
+    for ui, k in enumerate(seg_of_unit):
+        tris = tri_ids[tri_unit == ui]
+        if k > 0 and vertex_static is not None:
+            still = vertex_static[tri_vertices[tris]].all(axis=1)
+            fixed = tris[still]
+            fixed = fixed[vis[0, fixed]]
+            tri_e.append(fixed)
+            k0_e.append(np.zeros(len(fixed), np.int32))
+            k1_e.append(np.zeros(len(fixed), np.int32))
+            tris = tris[~still]
+        if k == 0:
+            tris = tris[vis[0, tris]]
+            tri_e.append(tris)
+            k0_e.append(np.zeros(len(tris), np.int32))
+            k1_e.append(np.zeros(len(tris), np.int32))
+            continue
+        step = k_global // k
+        for s in range(k):
+            t = tris[vis[s * step, tris]]
+            tri_e.append(t)
+            k0_e.append(np.full(len(t), s * step, np.int32))
+            k1_e.append(np.full(len(t), (s + 1) * step, np.int32))
+    return tuple(np.concatenate(a).astype(np.int32) for a in (tri_e, k0_e, k1_e))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_plan_entries_equal_the_unit_by_unit_loop(seed):
+    """Entries of units with 0 to 8 segments, still vertices and visibility switching at knots:
+    the same triangles, knots and order as building them unit by unit."""
+    from warp_blur.methods.analytic.segments import plan_entries
+    rng = np.random.default_rng(seed)
+    units = int(rng.integers(1, 30))
+    tri_unit = np.sort(rng.integers(0, units, size=int(rng.integers(0, 400)))).astype(np.int32)
+    tri_vertices = rng.integers(0, 200, size=(len(tri_unit), 3)).astype(np.int32)
+    seg_of_unit = rng.choice([0, 1, 2, 4, 8], size=units)
+    k_global = int(max(seg_of_unit.max(), 1))
+    vis = rng.random((k_global + 1, len(tri_unit))) < 0.8
+    vertex_static = None if seed % 3 == 0 else rng.random(200) < 0.4
+    got = plan_entries(tri_unit, tri_vertices, seg_of_unit, k_global, vis, vertex_static)
+    want = _entries_unit_by_unit(tri_unit, tri_vertices, seg_of_unit, k_global, vis, vertex_static)
+    for g, w in zip(got, want):
+        assert g.dtype == np.int32 and np.array_equal(g, w)

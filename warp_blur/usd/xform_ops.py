@@ -28,6 +28,7 @@ _ROTATE3 = {_T.TypeRotateXYZ: "XYZ", _T.TypeRotateXZY: "XZY", _T.TypeRotateYXZ: 
 _ROTATE1 = {_T.TypeRotateX: 0, _T.TypeRotateY: 1, _T.TypeRotateZ: 2}
 _TRANSLATE1 = {_T.TypeTranslateX: 0, _T.TypeTranslateY: 1, _T.TypeTranslateZ: 2}
 _SCALE1 = {_T.TypeScaleX: 0, _T.TypeScaleY: 1, _T.TypeScaleZ: 2}
+_SPLINES = hasattr(Usd.Attribute, "HasSpline")   # USD 24.11 on: a scalar op may hold a spline
 _SUPPORTED = ({_T.TypeTranslate, _T.TypeScale, _T.TypeOrient, _T.TypeTransform} | set(_ROTATE3) | set(_ROTATE1)
               | set(_TRANSLATE1) | set(_SCALE1))
 
@@ -51,7 +52,7 @@ def _op_linear(op: UsdGeom.XformOp, lo: float, hi: float) -> bool:
     """True when the op's value is USD's linear (or slerp) interpolation of its values at lo and hi
     over [lo, hi]: no spline, and no time sample strictly inside."""
     attr = op.GetAttr()
-    if hasattr(attr, "HasSpline") and attr.HasSpline():
+    if _SPLINES and attr.HasSpline():
         return False
     if not attr.ValueMightBeTimeVarying():
         return True

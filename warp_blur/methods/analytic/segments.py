@@ -131,6 +131,35 @@ def _hint(prim) -> int:
         return 3
 
 
+def plan_entries(tri_unit: np.ndarray, tri_vertices: np.ndarray, seg_of_unit: np.ndarray, k_global: int,
+                 vis: np.ndarray, vertex_static: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The frame's entries (triangle, first knot, last knot), int32 each, in unit order: a unit's
+    triangles whose vertices never move (or all of them, in a unit with no segments) as static
+    entries (k0 = k1 = 0) where visible at the first knot, then its K segments, segment by
+    segment, each triangle where visible at the segment's start. tri_unit (T,), tri_vertices
+    (T, 3), seg_of_unit (U,) K per unit, vis (knots, T) bool, vertex_static (V,) bool or None."""
+    tris = np.arange(len(tri_unit), dtype=np.int64)
+    k_of = seg_of_unit[tri_unit] if len(tri_unit) else np.zeros(0, np.int64)
+    still = np.zeros(len(tris), bool) if vertex_static is None else vertex_static[tri_vertices].all(axis=1)
+    fixed = (k_of == 0) | still
+    fixed_t = tris[fixed & vis[0]]
+    moving_t = tris[~fixed]
+    reps = k_of[moving_t]
+    seg_t = np.repeat(moving_t, reps)
+    seg = np.arange(len(seg_t)) - np.repeat(np.cumsum(reps) - reps, reps)   # 0 .. K - 1 within each
+    step = k_global // np.maximum(reps, 1)
+    a = seg * np.repeat(step, reps)
+    b = a + np.repeat(step, reps)
+    shown = vis[a, seg_t]
+    seg_t, seg, a, b = seg_t[shown], seg[shown], a[shown], b[shown]
+    tri = np.concatenate([fixed_t, seg_t])
+    part = np.concatenate([np.zeros(len(fixed_t), np.int64), 1 + seg])   # static first, then segment order
+    order = np.lexsort((tri, part, tri_unit[tri])) if len(tri) else np.zeros(0, np.int64)
+    k0 = np.concatenate([np.zeros(len(fixed_t), np.int64), a])
+    k1 = np.concatenate([np.zeros(len(fixed_t), np.int64), b])
+    return tri[order].astype(np.int32), k0[order].astype(np.int32), k1[order].astype(np.int32)
+
+
 def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int = 128,
                 error_px: float = 0.25, time_error: float = 0.001, known: dict | None = None) -> MotionPlan:
     """Choose segments per prim by bisection of the shutter. shutter_time(u) -> USD time.
@@ -169,13 +198,13 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
         ends = starts + np.array([u.num_points * u.num_instances for u in scene.units], np.int64)
         counts = np.concatenate([[0], np.cumsum(moved)])
         moves = counts[ends] > counts[starts]
-    for ui, unit in enumerate(scene.units):
-        if not moves[ui]:
-            continue
-        o, n = scene.unit_vertex_offsets[ui], unit.num_points * unit.num_instances
-        ps = [pos(k, o, n) for k in probes]
+    if moves.any():   # each moving vertex's tolerance: a share of its screen path over the probes
+        ps = [snap(k).positions for k in probes]
         path_px = sum(screen_distance_px(proj, b, a) for a, b in zip(ps, ps[1:]))
-        pending[ui] = np.maximum(np.minimum(error_px, time_error * path_px), 1e-3)
+        tolerance = np.maximum(np.minimum(error_px, time_error * path_px), 1e-3)
+        for ui in np.flatnonzero(moves):
+            o, n = scene.unit_vertex_offsets[ui], scene.units[ui].num_points * scene.units[ui].num_instances
+            pending[int(ui)] = tolerance[o:o + n]
     # the lights (intensity, colour, transform) are a unit too: their table is read linearly
     # between the kept knots, so it needs as many segments as its own curve does
     light_k = 0
@@ -253,40 +282,15 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
         normals = np.stack([scene.shading_normals(snap(i).positions, snap(i).time) for i in keep])
     lights = np.stack([snap(i).lights for i in keep])
     lights_static = bool(all(np.array_equal(snaps[i].lights, snaps[0].lights) for i in snaps))
-    tri_e, k0_e, k1_e = [], [], []
-    tri_ids = np.arange(scene.num_triangles, dtype=np.int32)
     vis = np.stack([snap(i).tri_visible for i in keep]) if scene.num_triangles else np.zeros((len(keep), 0), bool)
     # vertices that never move over the sampled knots: their triangles are static entries even
     # inside a moving prim (e.g. the resting instances of an instancer, or a skinned body's torso)
     sampled = np.stack([snaps[i].positions for i in sorted(snaps)]) if snaps else None
     vertex_static = (sampled == sampled[:1]).all(axis=(0, 2)) if sampled is not None else None
-    for ui, k in enumerate(seg_of_unit):
-        tris = tri_ids[scene.tri_unit == ui]
-        if k > 0 and vertex_static is not None:
-            still = vertex_static[scene.tri_vertices[tris]].all(axis=1)
-            if still.any():
-                fixed = tris[still]
-                fixed = fixed[vis[0, fixed]]
-                tri_e.append(fixed)
-                k0_e.append(np.zeros(len(fixed), np.int32))
-                k1_e.append(np.zeros(len(fixed), np.int32))
-                tris = tris[~still]
-        if k == 0:
-            tris = tris[vis[0, tris]]
-            tri_e.append(tris)
-            k0_e.append(np.zeros(len(tris), np.int32))
-            k1_e.append(np.zeros(len(tris), np.int32))
-            continue
-        step = k_global // k
-        for s in range(k):
-            a, b = s * step, (s + 1) * step
-            t = tris[vis[a, tris]]  # visibility of a segment is that at its start
-            tri_e.append(t)
-            k0_e.append(np.full(len(t), a, np.int32))
-            k1_e.append(np.full(len(t), b, np.int32))
-    cat = lambda a: np.concatenate(a).astype(np.int32) if a else np.zeros(0, np.int32)  # noqa: E731
-    return MotionPlan(positions=positions, normals=normals, lights=lights, entry_tri=cat(tri_e),
-                      entry_k0=cat(k0_e), entry_k1=cat(k1_e),
+    entry_tri, entry_k0, entry_k1 = plan_entries(scene.tri_unit, scene.tri_vertices, np.array(seg_of_unit, np.int64),
+                                                 k_global, vis, vertex_static)
+    return MotionPlan(positions=positions, normals=normals, lights=lights, entry_tri=entry_tri,
+                      entry_k0=entry_k0, entry_k1=entry_k1,
                       segments_per_prim={u.path: k for u, k in zip(scene.units, seg_of_unit)},
                       max_error_px=max_err, lights_static=lights_static, snapshots=len(snaps), capped=capped,
                       tri_visible=vis, light_segments=light_k)
