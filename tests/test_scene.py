@@ -410,7 +410,7 @@ def test_small_prims_placed_together_agree_with_usdgeom_and_with_one_by_one(scen
     stage, cam, scene = _scene(path)
     groups = scene._small_unit_groups()
     assert sorted(len(g.units) for g in groups) == [4, 8]   # blur scales 0.5 and 1
-    for t in (0.5, 0.9, 1.3):
+    for t in (0.5, 0.9, 1.3, 0.7, 1.1, 1.5, 0.6):   # the first four prim by prim, then batched
         snap = scene.snapshot(t)
         _assert_placed_like_usdgeom(scene, cam, snap, t)
         monkeypatch.setattr(units, "SMALL_UNIT_POINTS", 0)
@@ -419,7 +419,7 @@ def test_small_prims_placed_together_agree_with_usdgeom_and_with_one_by_one(scen
         np.testing.assert_allclose(snap.positions, alone.positions, rtol=1e-15, atol=1e-15)
         assert np.array_equal(snap.tri_visible, alone.tri_visible)
     assert not scene.snapshot(1.3).tri_visible[scene.tri_unit == 4].any()    # Q4 hides at 1.2
-    # every quad's ops are linear over the shutter: the batched transforms (xform_ops.py) placed them
+    # after units.USD_PLACEMENTS_FIRST snapshots the batched transforms (xform_ops.py) placed every quad
     assert all(g.linear is not None and len(g.linear[0]) == len(g.units) for g in groups)
 
 

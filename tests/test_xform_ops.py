@@ -12,26 +12,27 @@ F = UsdGeom.XformOp.PrecisionFloat
 
 
 def _random_stack(xf: UsdGeom.Xformable, rng: np.random.Generator, precision) -> None:
-    """Three to six ops of random kinds, each sampled at times 0 and 10 (or held)."""
+    """Three to six ops of random kinds, each sampled at times 0 and 10, or 0, 5 and 10 (or held)."""
     kinds = ["translate", "scale", "rotateX", "rotateY", "rotateZ", "rotateXYZ", "rotateZYX", "rotateYXZ",
              "orient", "transform", "translateX", "scaleZ", "pivot"]
     for n, kind in enumerate(rng.choice(kinds, size=rng.integers(3, 7))):
         suffix = f"s{n}"
         animated = rng.random() < 0.8
+        times = (0.0, 5.0, 10.0) if rng.random() < 0.5 else (0.0, 10.0)   # 5: inside the widest window
         if kind == "pivot":
             op = xf.AddTranslateOp(precision, suffix)
             op.Set(Gf.Vec3d(*rng.normal(size=3)) if precision == P else Gf.Vec3f(*rng.normal(size=3)))
             continue
         if kind == "orient":
             op = xf.AddOrientOp(precision, suffix)
-            for t in (0.0, 10.0) if animated else (0.0,):
+            for t in times if animated else (0.0,):
                 q = rng.normal(size=4)
                 q /= np.linalg.norm(q)
                 op.Set(Gf.Quatd(*q) if precision == P else Gf.Quatf(*q), t)
             continue
         if kind == "transform":
             op = xf.AddTransformOp(P, suffix)
-            for t in (0.0, 10.0) if animated else (0.0,):
+            for t in times if animated else (0.0,):
                 m = Gf.Matrix4d(1.0)
                 m.SetRotate(Gf.Rotation(Gf.Vec3d(*rng.normal(size=3)), float(rng.uniform(-180, 180))))
                 m.SetTranslateOnly(Gf.Vec3d(*rng.normal(size=3)))
@@ -43,7 +44,7 @@ def _random_stack(xf: UsdGeom.Xformable, rng: np.random.Generator, precision) ->
                "translateX": xf.AddTranslateXOp, "scaleZ": xf.AddScaleZOp}[kind]
         op = add(precision, suffix)
         scalar = kind in ("rotateX", "rotateY", "rotateZ", "translateX", "scaleZ")
-        for t in (0.0, 10.0) if animated else (0.0,):
+        for t in times if animated else (0.0,):
             v = rng.uniform(0.5, 2.0, size=3) if kind.startswith("scale") else rng.uniform(-200, 200, size=3)
             if scalar:
                 op.Set(float(v[0]), t)
@@ -89,16 +90,16 @@ def test_batched_transforms_equal_usdgeoms_at_every_time(precision, rtol, lo, hi
         np.testing.assert_allclose(out / scale, expected / scale, rtol=0, atol=rtol)
 
 
-def test_what_is_not_linear_over_the_window_is_left_to_usd():
+def test_samples_inside_the_window_are_followed_and_the_rest_left_to_usd():
     stage = Usd.Stage.CreateInMemory()
-    inside = UsdGeom.Xform.Define(stage, "/Inside")            # a sample inside the window
+    inside = UsdGeom.Xform.Define(stage, "/Inside")            # samples inside the window
     op = inside.AddTranslateOp()
-    for t, x in ((0.0, 0.0), (4.5, 5.0), (10.0, 0.0)):
+    for t, x in ((0.0, 0.0), (4.4, 5.0), (4.5, -2.0), (4.6, 3.0), (10.0, 0.0)):
         op.Set(Gf.Vec3d(x, 0, 0), t)
     moving_parent = UsdGeom.Xform.Define(stage, "/Moving")     # an animated parent, sampled inside
-    op = moving_parent.AddTranslateOp()
-    for t, x in ((0.0, 0.0), (4.6, 1.0), (10.0, 0.0)):
-        op.Set(Gf.Vec3d(x, 0, 0), t)
+    op = moving_parent.AddOrientOp()
+    for t, q in ((0.0, (1, 0, 0, 0)), (4.45, (0.6, 0.8, 0, 0)), (10.0, (0, 0, 1, 0))):
+        op.Set(Gf.Quatf(*q), t)
     child = UsdGeom.Xform.Define(stage, "/Moving/Child")
     child.AddRotateZOp().Set(10.0, 0.0)
     child.GetOrderedXformOps()[0].Set(20.0, 10.0)
@@ -107,16 +108,45 @@ def test_what_is_not_linear_over_the_window_is_left_to_usd():
     scale.Set(Gf.Vec3f(1, 1, 1), 0.0)
     scale.Set(Gf.Vec3f(0, 2, 2), 10.0)
     singular.AddScaleOp(opSuffix="s", isInverseOp=True)
-    good = UsdGeom.Xform.Define(stage, "/Good")
-    good.AddTranslateOp().Set(Gf.Vec3d(0, 0, 0), 0.0)
-    good.GetOrderedXformOps()[0].Set(Gf.Vec3d(0, 10, 0), 10.0)
-    prims = [p.GetPrim() for p in (inside, child, singular, good)]
+    unread = UsdGeom.Xform.Define(stage, "/Unread")             # an op with no value
+    unread.AddTranslateOp().Set(Gf.Vec3d(1, 0, 0), 0.0)
+    unread.GetOrderedXformOps()[0].Set(Gf.Vec3d(2, 0, 0), 10.0)
+    unread.AddRotateXOp()
+    prims = [p.GetPrim() for p in (inside, child, singular, unread)]
     batch = LinearTransforms(prims, 4.25, 4.75, {}, UsdGeom.XformCache(Usd.TimeCode(4.5)))
-    assert batch.placed.tolist() == [False, False, False, True]
+    assert batch.placed.tolist() == [True, True, False, False]
+    assert batch.breakpoints.tolist() == [4.25, 4.4, 4.45, 4.5, 4.6, 4.75]
+    for t in (4.25, 4.3, 4.4, 4.42, 4.45, 4.5, 4.55, 4.6, 4.7, 4.75):
+        out = np.full((4, 4, 4), 7.0)
+        batch.at(t, out)
+        assert (out[2:] == 7.0).all()   # rows it did not place are left alone
+        cache = UsdGeom.XformCache(Usd.TimeCode(t))
+        for i in (0, 1):
+            np.testing.assert_allclose(out[i], np.array(cache.GetLocalToWorldTransform(prims[i])), atol=1e-6)
     stage.SetInterpolationType(Usd.InterpolationTypeHeld)   # values step at samples: none is linear
     assert not LinearTransforms(prims, 4.25, 4.75, {}, UsdGeom.XformCache(Usd.TimeCode(4.5))).placed.any()
     stage.SetInterpolationType(Usd.InterpolationTypeLinear)
-    out = np.full((4, 4, 4), 7.0)
-    batch.at(4.5, out)
-    assert (out[:3] == 7.0).all()   # rows it did not place are left alone
-    np.testing.assert_allclose(out[3, 3, :3], [0, 4.5, 0], atol=1e-12)
+    crowded = UsdGeom.Xform.Define(stage, "/Crowded").AddTranslateXOp()   # more samples than it follows
+    for i in range(40):
+        crowded.Set(float(i % 3), 4.26 + i * 0.01)
+    assert not LinearTransforms([stage.GetPrimAtPath("/Crowded")], 4.25, 4.75, {},
+                                UsdGeom.XformCache(Usd.TimeCode(4.5))).placed.any()
+
+
+@pytest.mark.parametrize("method", ["analytic", "accumulation"])
+def test_a_render_of_animated_props_is_the_same_batched_or_prim_by_prim(tmp_path, monkeypatch, method):
+    """Forty cubes under animated Xforms (translate and turn): the frame rendered with the batched
+    transforms equals the one rendered asking USD prim by prim (float32 rounding at most)."""
+    import sys
+
+    import warp_blur as wb
+    import warp_blur.usd.units as units
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1] / "bench"))
+    from bench_props import make_props
+    path = make_props(str(tmp_path / "props.usda"), 40)
+    settings = wb.RenderSettings(method=method, samples=8, aovs=())
+    batched = wb.Renderer(path, resolution=(64, 48), settings=settings).render(3.0).rgba
+    monkeypatch.setattr(units, "BATCH_XFORM_OPS", False)
+    alone = wb.Renderer(path, resolution=(64, 48), settings=settings).render(3.0).rgba
+    assert batched[..., 3].sum() > 100   # the props are in view
+    np.testing.assert_allclose(batched, alone, rtol=0, atol=1e-5)

@@ -150,6 +150,14 @@ class UnitRows:
 
 #: prims with at most this many points (and one instance) are placed together
 SMALL_UNIT_POINTS = 256
+#: moving prims of a group whose xformOps are linear over the frame are placed by xform_ops.py
+#: (False: every prim asks USD at every snapshot; bench/bench_props.py compares the two)
+BATCH_XFORM_OPS = True
+#: snapshots a frame places prim by prim before batching: reading the ops' values at the window's
+#: breakpoints costs about what placing the prims two or three times does (3000 props: ~60 ms),
+#: so a frame of one or two snapshots never batches; velocity's 12, analytic's 10 to 130 and
+#: accumulation's 64 and more do
+USD_PLACEMENTS_FIRST = 2
 
 
 @dataclass
@@ -170,7 +178,8 @@ class SmallUnitGroup:
     last_placed: tuple | None = None         # still groups: (camera matrix bytes, (V_group, 3) block)
     window: tuple | None = None   # (lo, hi) USD times the frame's snapshots ask of it (set by the scene)
     memo: dict | None = None      # the scene's transform_may_vary verdicts
-    linear: tuple | None = None   # moving groups: (member positions, LinearTransforms of their prims)
+    linear: tuple | None = None   # moving groups: (placed members, the others, LinearTransforms)
+    moving_placements: int = 0    # snapshots this frame has asked of a moving group
 
     def place(self, units: list, t_prim: float, cache, cam_from_world: np.ndarray, positions: np.ndarray,
               unit_visible: np.ndarray) -> None:
@@ -208,11 +217,13 @@ class SmallUnitGroup:
     def _moving_transforms(self, members: list, t_prim: float, cache) -> np.ndarray:
         """(U, 4, 4) local-to-world of the members at USD time t_prim: those whose xformOps are
         linear over the window from one batched pass (xform_ops.py), the others from USD."""
-        if self.linear is None and self.window is not None:
+        self.moving_placements += 1
+        if self.linear is None and self.window is not None and BATCH_XFORM_OPS \
+                and self.moving_placements > USD_PLACEMENTS_FIRST:
             prims = [getattr(u.transforms_at, "prim", None) for u in members]
             rows = np.array([i for i, p in enumerate(prims) if p is not None], np.int64)
             batch = LinearTransforms([prims[i] for i in rows], *self.window, {} if self.memo is None else self.memo,
-                                     cache)
+                                     cache, [members[i].transforms_at for i in rows])
             self.linear = (rows[batch.placed], np.setdiff1d(np.arange(len(members)), rows[batch.placed]), batch)
         if self.linear is None or not self.linear[2].covers(t_prim):
             return np.concatenate([u.transforms_at(t_prim, cache) for u in members])

@@ -1,18 +1,17 @@
 """Local-to-world transforms of many moving prims at many shutter times, batched in NumPy: what
 UsdGeom.XformCache gives prim by prim (~8 µs a prim and time: 3000 animated props cost an
-accumulation frame's 76 snapshots 1.9 s), for the prims whose xformOps are all linear in time over
-the frame's window.
+accumulation frame's 76 snapshots 1.9 s).
 
 Between two authored samples USD interpolates each op's value linearly (an `orient` quaternion by
-slerp), so where no sample lies strictly inside the window [lo, hi], each op's value at a time in it
-is the interpolation of its values at lo and hi, read from USD once a frame. The op matrices are
-then built and multiplied for every such prim of an op-stack signature at once (row vectors, the
-last op of xformOpOrder on the left, as UsdGeom.Xformable composes them; the ops of animated
-ancestors above the prim's), under the world transform of the nearest ancestor that holds still.
-Anything else (held interpolation, splines, a sample inside the window, an op that does not read)
-is left to USD: `LinearTransforms.placed` says which prims it places. Values of float-precision
-ops interpolate in float64 here and in float32 in USD: agreement to ~1e-7 relative there, ~1e-12
-for double ops."""
+slerp). So over a frame's window [lo, hi], an op's value at any time is the interpolation of its
+values at the window's breakpoints (its ends and every sample time inside it), read from USD once
+a frame. The op matrices are then built and multiplied for every prim of an op-stack signature at
+once (row vectors, the last op of xformOpOrder on the left, as UsdGeom.Xformable composes them;
+the ops of animated ancestors above the prim's), under the world transform of the nearest ancestor
+that holds still. What this does not follow (held interpolation, splines, an inverted scale or
+matrix, an op that does not read, more than MAX_BREAKPOINTS samples in the window) is left to USD:
+`LinearTransforms.placed` says which prims it places. Values of float-precision ops interpolate in
+float64 here and in float32 in USD: agreement to ~1e-7 relative there, ~1e-12 for double ops."""
 
 from __future__ import annotations
 
@@ -33,40 +32,13 @@ _SUPPORTED = ({_T.TypeTranslate, _T.TypeScale, _T.TypeOrient, _T.TypeTransform} 
               | set(_TRANSLATE1) | set(_SCALE1))
 
 
-def _value(op: UsdGeom.XformOp, time: float) -> np.ndarray | None:
-    """The op's value at a time as a flat float64 array (a quaternion as w, x, y, z; a matrix by
-    rows), or None when it does not read."""
-    v = op.Get(Usd.TimeCode(time))
-    if v is None:
-        return None
-    if isinstance(v, (Gf.Quatd, Gf.Quatf, Gf.Quath)):
-        im = v.GetImaginary()
-        return np.array([v.GetReal(), im[0], im[1], im[2]], np.float64)
-    try:
-        return np.asarray(v, np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        return None
-
-
-def _op_linear(op: UsdGeom.XformOp, lo: float, hi: float) -> bool:
-    """True when the op's value is USD's linear (or slerp) interpolation of its values at lo and hi
-    over [lo, hi]: no spline, and no time sample strictly inside."""
-    attr = op.GetAttr()
-    if _SPLINES and attr.HasSpline():
-        return False
-    if not attr.ValueMightBeTimeVarying():
-        return True
-    return all(not (lo < s < hi) for s in attr.GetTimeSamplesInInterval(Gf.Interval(lo, hi)))
-
-
-def linear_stack(prim: Usd.Prim, lo: float, hi: float, parent_to_world, memo: dict) -> tuple | None:
-    """(signature, values at lo, values at hi, (4, 4) base-to-world) of a prim whose transform is a
-    product of ops linear over [lo, hi] under a held one, or None (USD places it). The ops are the
-    prim's and its animated ancestors' (a gprim under an animated Xform), top first; the base is the
-    world transform of the nearest ancestor that holds still (parent_to_world(ancestor)), or the
-    identity at the root or a resetXformStack. memo: transform_may_vary's verdicts."""
-    if prim.GetStage().GetInterpolationType() != Usd.InterpolationTypeLinear:
-        return None
+def op_structure(prim: Usd.Prim, parent_to_world, memo: dict) -> tuple | None:
+    """(signature ((op type, inverse), ...), attributes, (4, 4) base-to-world) of the ops that move a prim,
+    its own and its animated ancestors' (a gprim under an animated Xform), top first; the base is
+    the world transform of the nearest ancestor that holds still (parent_to_world(ancestor)), or
+    the identity at the root or a resetXformStack. None where an op is of a kind not handled here,
+    holds a spline, or inverts a scale or matrix (it may be singular: USD's own answer). What
+    does not change from frame to frame: kept with the prim's unit. memo: transform_may_vary's."""
     chain = []
     p = prim
     for _depth in range(64):
@@ -82,27 +54,54 @@ def linear_stack(prim: Usd.Prim, lo: float, hi: float, parent_to_world, memo: di
         p = parent
     else:
         return None
-    signature, v_lo, v_hi = [], [], []
-    for op in (op for ops in reversed(chain) for op in ops):
-        kind = op.GetOpType()
-        if kind not in _SUPPORTED or not _op_linear(op, lo, hi):
+    signature, ops = [], []
+    for op in (op for level in reversed(chain) for op in level):
+        kind, inverse = op.GetOpType(), bool(op.IsInverseOp())
+        if kind not in _SUPPORTED or (_SPLINES and op.GetAttr().HasSpline()):
             return None
-        a, b = _value(op, lo), _value(op, hi)
-        if a is None or b is None or a.shape != b.shape or not (np.isfinite(a).all() and np.isfinite(b).all()):
-            return None
-        expected = 16 if kind == _T.TypeTransform else 4 if kind == _T.TypeOrient else \
-            1 if kind in _ROTATE1 or kind in _TRANSLATE1 or kind in _SCALE1 else 3
-        if a.size != expected:
-            return None
-        inverse = bool(op.IsInverseOp())
         if inverse and (kind == _T.TypeTransform or kind == _T.TypeScale or kind in _SCALE1):
-            return None   # may be singular: USD's own answer
+            return None
         signature.append((kind, inverse))
-        v_lo.append(a)
-        v_hi.append(b)
-    if not signature:
-        return None
-    return tuple(signature), v_lo, v_hi, base
+        ops.append(op.GetAttr())
+    return (tuple(signature), ops, base) if ops else None
+
+
+def _interior_samples(attrs: list, lo: float, hi: float) -> list[float]:
+    """The attributes' authored sample times strictly inside (lo, hi): where their values bend."""
+    times = []
+    for attr in attrs:
+        if attr.ValueMightBeTimeVarying():
+            times.extend(t for t in attr.GetTimeSamplesInInterval(Gf.Interval(lo, hi)) if lo < t < hi)
+    return times
+
+
+def _op_size(kind) -> int:
+    return 16 if kind == _T.TypeTransform else 4 if kind == _T.TypeOrient else \
+        1 if kind in _ROTATE1 or kind in _TRANSLATE1 or kind in _SCALE1 else 3
+
+
+def _values_array(raw: list, kind, shape: tuple) -> np.ndarray:
+    """raw USD values (Gf vectors, matrices, quaternions, floats, None) as a float64 array of
+    `shape` ((K, B, n)), NaN where one does not read or is not of the op's size: one NumPy call for
+    vectors and matrices (their buffers), else value by value."""
+    if kind != _T.TypeOrient and all(v is not None for v in raw):
+        try:
+            return np.array(raw, np.float64).reshape(shape)
+        except (TypeError, ValueError):
+            pass
+    rows = []
+    for v in raw:
+        x = None
+        if isinstance(v, (Gf.Quatd, Gf.Quatf, Gf.Quath)):
+            im = v.GetImaginary()
+            x = np.array([v.GetReal(), im[0], im[1], im[2]], np.float64)
+        elif v is not None:
+            try:
+                x = np.asarray(v, np.float64).reshape(-1)
+            except (TypeError, ValueError):
+                x = None
+        rows.append(x if x is not None and x.size == shape[-1] else np.full(shape[-1], np.nan))
+    return np.stack(rows).reshape(shape)
 
 
 def _axis_rotations(axis: int, degrees: np.ndarray) -> np.ndarray:
@@ -183,12 +182,25 @@ def _op_matrices(kind, lo: np.ndarray, hi: np.ndarray, a: float) -> np.ndarray:
     return m
 
 
-class LinearTransforms:
-    """Local-to-world transforms over a window [lo, hi] of those of `prims` whose op stacks are
-    linear there (linear_stack), one NumPy pass per op-stack signature for all of them."""
+#: most sample times inside a frame's window the batch follows (baked animation with a sample
+#: a frame and a shutter under a frame has one or two)
+MAX_BREAKPOINTS = 16
 
-    def __init__(self, prims: list[Usd.Prim], lo: float, hi: float, memo: dict, parent_cache: UsdGeom.XformCache):
+
+class LinearTransforms:
+    """Local-to-world transforms over a window [lo, hi] of those of `prims` that op_structure
+    handles: every op's values read at the window's breakpoints (its ends and the samples inside
+    it), linear (slerp for `orient`) between them; one NumPy pass per op-stack signature.
+    holders[i] (any object, e.g. the prim's transforms_at) keeps prim i's op_structure across
+    frames; None to find it again."""
+
+    def __init__(self, prims: list[Usd.Prim], lo: float, hi: float, memo: dict, parent_cache: UsdGeom.XformCache,
+                 holders: list | None = None):
         self.lo, self.hi = float(min(lo, hi)), float(max(lo, hi))
+        self.placed = np.zeros(len(prims), bool)
+        self.batches = []
+        if not prims or prims[0].GetStage().GetInterpolationType() != Usd.InterpolationTypeLinear:
+            return
         parents: dict = {}
 
         def parent_to_world(parent: Usd.Prim) -> np.ndarray:
@@ -197,20 +209,36 @@ class LinearTransforms:
                 parents[key] = np.array(parent_cache.GetLocalToWorldTransform(parent), np.float64)
             return parents[key]
 
-        self.placed = np.zeros(len(prims), bool)
-        by_signature: dict = {}
+        structures = []
         for i, prim in enumerate(prims):
-            stack = linear_stack(prim, self.lo, self.hi, parent_to_world, memo)
-            if stack is not None:
-                self.placed[i] = True
-                by_signature.setdefault(stack[0], []).append((i, stack))
-        # per signature: (members (K,), per op (K, n) values at lo and hi, (K, 4, 4) parents)
-        self.batches = []
+            holder = holders[i] if holders is not None else None
+            structure = getattr(holder, "xform_structure", False)
+            if structure is False:
+                structure = op_structure(prim, parent_to_world, memo)
+                if holder is not None:
+                    holder.xform_structure = structure
+            structures.append(structure)
+        inside = sorted({t for st in structures if st is not None for t in _interior_samples(st[1], self.lo, self.hi)})
+        if len(inside) > MAX_BREAKPOINTS:
+            return
+        self.breakpoints = np.array([self.lo] + inside + ([self.hi] if self.hi > self.lo else []), np.float64)
+        by_signature: dict = {}
+        for i, st in enumerate(structures):
+            if st is not None:
+                by_signature.setdefault(st[0], []).append((i, st[1], st[2]))
+        # per signature: (members (K,), per op (K, B, n) values at the breakpoints, (K, 4, 4) bases)
+        times = [float(t) for t in self.breakpoints]
         for signature, rows in by_signature.items():
-            members = np.array([i for i, _ in rows])
-            lows = [np.stack([s[1][j] for _, s in rows]) for j in range(len(signature))]
-            highs = [np.stack([s[2][j] for _, s in rows]) for j in range(len(signature))]
-            self.batches.append((signature, members, lows, highs, np.stack([s[3] for _, s in rows])))
+            values = [_values_array([attrs[j].Get(t) for _, attrs, _ in rows for t in times], kind,
+                                    (len(rows), len(times), _op_size(kind)))
+                      for j, (kind, _) in enumerate(signature)]
+            ok = np.logical_and.reduce([np.isfinite(v).all(axis=(1, 2)) for v in values])
+            if not ok.any():
+                continue
+            members = np.array([i for i, _, _ in rows])[ok]
+            self.placed[members] = True
+            self.batches.append((signature, members, [v[ok] for v in values],
+                                 np.stack([b for _, _, b in rows])[ok]))
 
     def covers(self, time: float) -> bool:
         return self.lo <= time <= self.hi and bool(self.placed.any())
@@ -218,12 +246,15 @@ class LinearTransforms:
     def at(self, time: float, out: np.ndarray) -> None:
         """Write the (4, 4) local-to-world at USD time `time` (inside the window) of every placed
         prim into out (len(prims), 4, 4); the other rows are left as they are."""
-        a = 0.0 if self.hi == self.lo else (time - self.lo) / (self.hi - self.lo)
-        for signature, members, lows, highs, parents in self.batches:
+        bp = self.breakpoints
+        j = min(max(int(np.searchsorted(bp, time, side="right")) - 1, 0), max(len(bp) - 2, 0))
+        a = 0.0 if len(bp) < 2 else (time - bp[j]) / (bp[j + 1] - bp[j])
+        k = min(j + 1, len(bp) - 1)
+        for signature, members, values, bases in self.batches:
             local = None
-            for (kind, inverse), lo, hi in zip(signature, lows, highs):
-                m = _op_matrices(kind, lo, hi, a)
+            for (kind, inverse), v in zip(signature, values):
+                m = _op_matrices(kind, v[:, j], v[:, k], a)
                 if inverse:
                     m = np.linalg.inv(m)
                 local = m if local is None else m @ local   # later ops act on the point first: left
-            out[members] = local @ parents
+            out[members] = local @ bases
