@@ -395,3 +395,33 @@ def test_zero_scaled_points_render(tmp_path, scene_path):
     out = str(tmp_path / "dust.exr")
     code, lines = _cli("render", path, "-o", out, "--frame", "1", "--resolution", "16x12", "--method", "analytic")
     assert code == 0 and os.path.exists(out), lines
+
+
+@pytest.mark.parametrize("method", ["analytic", "stochastic"])
+def test_a_frame_whose_motion_entries_would_not_fit_is_refused_once_they_are_planned(scene_path, method):
+    """Eight quads each turning a full circle over the shutter: 16 triangles, 512 entries (one per
+    motion segment). A memory limit above the frame counted one entry a triangle but below its
+    planned entries is a one-line SettingsError naming them; just above them, it renders."""
+    import sys
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "stages"))
+    from authoring import add_camera, add_quad, new_stage
+
+    from warp_blur.core.memory import ENTRY_TABLE_BYTES, frame_bytes
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    for i in range(8):
+        add_quad(stage, f"/World/Q{i}", 1.0, 0.2, translate=(i * 0.5 - 2, 0, -i), rotate_axis="Z",
+                 rotate_samples={0: 0, 2: 720})
+    stage.GetRootLayer().Save()
+    first = wb.render(path, frame=1, resolution=(32, 24), method=method, samples=4, aovs=())
+    triangles, entries = first.stats["triangles"], first.stats["entries"]
+    assert entries >= 16 * triangles
+    one_each = frame_bytes(method, 32, 24, 1, triangles)
+    planned = one_each + ENTRY_TABLE_BYTES[method] * (entries - triangles)
+    with pytest.raises(wb.SettingsError, match=f"{triangles} triangles in {entries} motion entries"):
+        wb.render(path, frame=1, resolution=(32, 24), method=method, samples=4, aovs=(),
+                  frame_memory_limit_mb=(one_each + planned) / 2 / 2**20)
+    again = wb.render(path, frame=1, resolution=(32, 24), method=method, samples=4, aovs=(),
+                      frame_memory_limit_mb=planned * 1.01 / 2**20)
+    assert again.stats["entries"] == entries

@@ -44,6 +44,11 @@ def default_limit_mb() -> float:
     return 0.75 * total / 2**20 if total else 16384.0
 
 
+def _size(nbytes: float) -> str:
+    """Bytes as GiB, or MiB below one GiB (a limit of 0.3 MiB is not '0.0 GiB')."""
+    return f"{nbytes / 2**30:.1f} GiB" if nbytes >= 2**30 else f"{nbytes / 2**20:.2f} MiB"
+
+
 def check_frame_fits(method: str, width: int, height: int, spatial_samples: int, limit_mb: float | None) -> None:
     """A SettingsError naming the estimate and the limit when the frame would not fit."""
     limit = default_limit_mb() if limit_mb is None else float(limit_mb)
@@ -52,5 +57,20 @@ def check_frame_fits(method: str, width: int, height: int, spatial_samples: int,
         raise SettingsError(
             f"a {width}x{height} frame with {method}"
             f"{f' and {spatial_samples}x{spatial_samples} spatial samples' if spatial_samples > 1 else ''} "
-            f"needs about {need / 2**30:.1f} GiB, over the memory limit of {limit / 1024:.1f} GiB "
+            f"needs about {_size(need)}, over the memory limit of {_size(limit * 2**20)} "
             f"(lower --resolution or raise --memory-limit)")
+
+
+def check_entries_fit(method: str, width: int, height: int, spatial_samples: int, triangles: int, entries: int,
+                      limit_mb: float | None) -> None:
+    """Once the motion plan is known (before its tables are allocated): a SettingsError when the
+    frame's pixels, triangle tables and its entries (a triangle one per motion segment) would not
+    fit the memory limit. check_frame_fits, before the stage is read, counts pixels only."""
+    limit = default_limit_mb() if limit_mb is None else float(limit_mb)
+    need = frame_bytes(method, width, height, spatial_samples, triangles) \
+        + ENTRY_TABLE_BYTES.get(method, 0) * max(0, entries - triangles)
+    if need > limit * 2**20:
+        raise SettingsError(
+            f"this frame's {triangles} triangles in {entries} motion entries need about {_size(need)} "
+            f"with its {width}x{height} pixels, over the memory limit of {_size(limit * 2**20)} (raise "
+            f"--memory-limit, or lower RenderSettings.max_segments)")

@@ -21,6 +21,7 @@ import numpy as np
 from pxr import UsdGeom
 
 from ...core.camera import Projection
+from ...core.memory import check_entries_fit
 from ...core.parallel import Background, default_threads
 from ...raster.binning import entry_near_depth
 from ...raster.culling import hidden_back_faces
@@ -326,6 +327,8 @@ def prepare_motion(ctx):
             plan.entry_tri, plan.entry_k0, plan.entry_k1 = (a[~hidden] for a in (plan.entry_tri, plan.entry_k0,
                                                                                   plan.entry_k1))
         ctx.counters["back_faces_dropped"] = int(hidden.sum())
+    check_entries_fit(s.method, ctx.proj.width, ctx.proj.height, s.spatial_samples, ctx.scene.num_triangles,
+                      len(plan.entry_tri), s.frame_memory_limit_mb)
     geo = make_geometry(ctx.tables, plan.positions, plan.normals, plan.entry_tri, plan.entry_k0, plan.entry_k1)
     if EDGE_TABLES and not ctx.proj.orthographic and len(plan.entry_tri):
         # the moving entries' edge quadratics, once an entry rather than once a pixel ray
