@@ -10,15 +10,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
-import time
 
-from tqdm import tqdm
 
 sys.path.insert(0, os.path.dirname(__file__))
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "stages"))
-from common import OUT, save, table  # noqa: E402
+from common import OUT, a_against_b, median_frame_seconds, save, table  # noqa: E402
 
 import warp_blur as wb  # noqa: E402
 import warp_blur.usd.units as units  # noqa: E402
@@ -55,15 +52,9 @@ def frame_seconds(path: str, res: tuple[int, int], method: str, frames: list[flo
     units.BATCH_XFORM_OPS = batched
     try:
         r = wb.Renderer(path, resolution=res, settings=wb.RenderSettings(method=method, aovs=()))
-        r.render(frames[0] - 1)
-        times = []
-        for f in frames:
-            t0 = time.perf_counter()
-            r.render(f)
-            times.append(time.perf_counter() - t0)
+        return median_frame_seconds(r.render, frames)
     finally:
         units.BATCH_XFORM_OPS = True
-    return statistics.median(times)
 
 
 def main() -> None:
@@ -76,16 +67,8 @@ def main() -> None:
     os.makedirs(os.path.join(OUT, "scenes"), exist_ok=True)
     path = make_props(os.path.join(OUT, "scenes", f"props_{args.props}.usda"), args.props)
     frames = [float(f) for f in range(2, 2 + args.frames)]
-    rows = []
-    methods = ["analytic", "stochastic", "accumulation", "velocity"]
-    with tqdm(total=2 * len(methods), desc="props", unit="run") as bar:
-        for method in methods:
-            row = {"method": method}
-            for batched in (True, False):
-                row["batched s" if batched else "per-prim s"] = frame_seconds(path, res, method, frames, batched)
-                bar.update()
-            row["per-prim / batched"] = row["per-prim s"] / row["batched s"]
-            rows.append(row)
+    rows = a_against_b(lambda method, batched: frame_seconds(path, res, method, frames, batched),
+                       ("batched s", "per-prim s"), "props")
     print(f"\n{args.props} animated props at {res[0]}x{res[1]}, median of {args.frames} frames a row")
     print(table(rows, ["method", "batched s", "per-prim s", "per-prim / batched"]))
     print("saved", save("props.json", {"props": args.props, "resolution": res, "rows": rows}))

@@ -10,15 +10,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
-import time
 
-from tqdm import tqdm
 
 sys.path.insert(0, os.path.dirname(__file__))
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "stages"))
-from common import OUT, save, table  # noqa: E402
+from common import OUT, a_against_b, median_frame_seconds, save, table  # noqa: E402
 
 import warp_blur as wb  # noqa: E402
 
@@ -47,13 +44,7 @@ def frame_seconds(path: str, res: tuple[int, int], method: str, frames: list[flo
     r = wb.Renderer(path, resolution=res, settings=wb.RenderSettings(method=method, aovs=()))
     if not keep:
         r.units = None   # every prim read again each frame
-    r.render(frames[0] - 1)
-    times = []
-    for f in frames:
-        t0 = time.perf_counter()
-        r.render(f)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+    return median_frame_seconds(r.render, frames)
 
 
 def main() -> None:
@@ -66,16 +57,7 @@ def main() -> None:
     os.makedirs(os.path.join(OUT, "scenes"), exist_ok=True)
     path = make_set(os.path.join(OUT, "scenes", f"set_{args.props}.usda"), args.props)
     frames = [float(f) for f in range(2, 2 + args.frames)]
-    rows = []
-    methods = ["analytic", "stochastic", "accumulation", "velocity"]
-    with tqdm(total=2 * len(methods), desc="set", unit="run") as bar:
-        for method in methods:
-            row = {"method": method}
-            for keep in (True, False):
-                row["kept s" if keep else "read s"] = frame_seconds(path, res, method, frames, keep)
-                bar.update()
-            row["read / kept"] = row["read s"] / row["kept s"]
-            rows.append(row)
+    rows = a_against_b(lambda method, keep: frame_seconds(path, res, method, frames, keep), ("kept s", "read s"), "set")
     print(f"\n{args.props} still props + 1 mover at {res[0]}x{res[1]}, median of {args.frames} frames a row")
     print(table(rows, ["method", "kept s", "read s", "read / kept"]))
     print("saved", save("set.json", {"props": args.props, "resolution": res, "rows": rows}))

@@ -60,3 +60,34 @@ def pyplot():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt
+
+
+METHODS = ["analytic", "stochastic", "accumulation", "velocity"]
+
+
+def median_frame_seconds(render, frames: list[float]) -> float:
+    """Median seconds of render(frame) over `frames`, after a warm-up at the frame before the first
+    (a Renderer's kept state is then what a batch render reaches)."""
+    render(frames[0] - 1)
+    times = []
+    for f in frames:
+        t0 = time.perf_counter()
+        render(f)
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def a_against_b(seconds: Callable[[str, bool], float], columns: tuple[str, str], desc: str) -> list[dict]:
+    """Per method, seconds(method, True) and seconds(method, False) as columns (a, b) and their
+    ratio b / a, under a progress bar: one run, so the ratio is what to read."""
+    from tqdm import tqdm
+    rows = []
+    with tqdm(total=2 * len(METHODS), desc=desc, unit="run") as bar:
+        for method in METHODS:
+            row = {"method": method}
+            for flag, column in zip((True, False), columns):
+                row[column] = seconds(method, flag)
+                bar.update()
+            row[f"{columns[1].split()[0]} / {columns[0].split()[0]}"] = row[columns[1]] / row[columns[0]]
+            rows.append(row)
+    return rows
