@@ -112,12 +112,17 @@ def test_samples_inside_the_window_are_followed_and_the_rest_left_to_usd():
     unread.AddTranslateOp().Set(Gf.Vec3d(1, 0, 0), 0.0)
     unread.GetOrderedXformOps()[0].Set(Gf.Vec3d(2, 0, 0), 10.0)
     unread.AddRotateXOp()
-    prims = [p.GetPrim() for p in (inside, child, singular, unread)]
+    zero = UsdGeom.Xform.Define(stage, "/Zero")                 # a zero quaternion: no rotation to slerp
+    move = zero.AddTranslateOp()
+    move.Set(Gf.Vec3d(0, 0, 0), 0.0)
+    move.Set(Gf.Vec3d(1, 0, 0), 10.0)
+    zero.AddOrientOp().Set(Gf.Quatf(0, 0, 0, 0))
+    prims = [p.GetPrim() for p in (inside, child, singular, unread, zero)]
     batch = LinearTransforms(prims, 4.25, 4.75, {}, UsdGeom.XformCache(Usd.TimeCode(4.5)))
-    assert batch.placed.tolist() == [True, True, False, False]
+    assert batch.placed.tolist() == [True, True, False, False, False]
     assert batch.breakpoints.tolist() == [4.25, 4.4, 4.45, 4.5, 4.6, 4.75]
     for t in (4.25, 4.3, 4.4, 4.42, 4.45, 4.5, 4.55, 4.6, 4.7, 4.75):
-        out = np.full((4, 4, 4), 7.0)
+        out = np.full((5, 4, 4), 7.0)
         batch.at(t, out)
         assert (out[2:] == 7.0).all()   # rows it did not place are left alone
         cache = UsdGeom.XformCache(Usd.TimeCode(t))

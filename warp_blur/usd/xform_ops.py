@@ -233,6 +233,9 @@ class LinearTransforms:
                                     (len(rows), len(times), _op_size(kind)))
                       for j, (kind, _) in enumerate(signature)]
             ok = np.logical_and.reduce([np.isfinite(v).all(axis=(1, 2)) for v in values])
+            for (kind, _), v in zip(signature, values):   # a zero quaternion: USD's own answer
+                if kind == _T.TypeOrient:
+                    ok &= (np.linalg.norm(v, axis=2) > 1e-12).all(axis=1)
             if not ok.any():
                 continue
             members = np.array([i for i, _, _ in rows])[ok]
