@@ -117,12 +117,15 @@ def test_samples_inside_the_window_are_followed_and_the_rest_left_to_usd():
     move.Set(Gf.Vec3d(0, 0, 0), 0.0)
     move.Set(Gf.Vec3d(1, 0, 0), 10.0)
     zero.AddOrientOp().Set(Gf.Quatf(0, 0, 0, 0))
-    prims = [p.GetPrim() for p in (inside, child, singular, unread, zero)]
+    scaled = UsdGeom.Xform.Define(stage, "/Scaled")             # quaternions not of unit length
+    scaled.AddOrientOp().Set(Gf.Quatf(2, 0, 0, 0), 0.0)
+    scaled.GetOrderedXformOps()[0].Set(Gf.Quatf(0, 1, 0, 0), 10.0)
+    prims = [p.GetPrim() for p in (inside, child, singular, unread, zero, scaled)]
     batch = LinearTransforms(prims, 4.25, 4.75, {}, UsdGeom.XformCache(Usd.TimeCode(4.5)))
-    assert batch.placed.tolist() == [True, True, False, False, False]
+    assert batch.placed.tolist() == [True, True, False, False, False, False]
     assert batch.breakpoints.tolist() == [4.25, 4.4, 4.45, 4.5, 4.6, 4.75]
     for t in (4.25, 4.3, 4.4, 4.42, 4.45, 4.5, 4.55, 4.6, 4.7, 4.75):
-        out = np.full((5, 4, 4), 7.0)
+        out = np.full((6, 4, 4), 7.0)
         batch.at(t, out)
         assert (out[2:] == 7.0).all()   # rows it did not place are left alone
         cache = UsdGeom.XformCache(Usd.TimeCode(t))

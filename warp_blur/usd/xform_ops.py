@@ -9,7 +9,8 @@ a frame. The op matrices are then built and multiplied for every prim of an op-s
 once (row vectors, the last op of xformOpOrder on the left, as UsdGeom.Xformable composes them;
 the ops of animated ancestors above the prim's), under the world transform of the nearest ancestor
 that holds still. What this does not follow (held interpolation, splines, an inverted scale or
-matrix, an op that does not read, more than MAX_BREAKPOINTS samples in the window) is left to USD:
+matrix, an `orient` not of unit length, an op that does not read, more than MAX_BREAKPOINTS
+samples in the window) is left to USD:
 `LinearTransforms.placed` says which prims it places. Values of float-precision ops interpolate in
 float64 here and in float32 in USD: agreement to ~1e-7 relative there, ~1e-12 for double ops."""
 
@@ -233,9 +234,11 @@ class LinearTransforms:
                                     (len(rows), len(times), _op_size(kind)))
                       for j, (kind, _) in enumerate(signature)]
             ok = np.logical_and.reduce([np.isfinite(v).all(axis=(1, 2)) for v in values])
-            for (kind, _), v in zip(signature, values):   # a zero quaternion: USD's own answer
+            for (kind, _), v in zip(signature, values):
                 if kind == _T.TypeOrient:
-                    ok &= (np.linalg.norm(v, axis=2) > 1e-12).all(axis=1)
+                    # GfSlerp weighs the quaternions as authored: only unit ones (to float rounding)
+                    # follow the arc slerp here takes; a zero or scaled one is USD's to place
+                    ok &= (np.abs(np.linalg.norm(v, axis=2) - 1.0) < 1e-5).all(axis=1)
             if not ok.any():
                 continue
             members = np.array([i for i, _, _ in rows])[ok]
