@@ -100,6 +100,35 @@ def test_gprims_purpose_and_visibility(scene_path):
     np.testing.assert_allclose(np.linalg.norm(s, axis=1), 1.0, atol=1e-6)
 
 
+def test_implicit_gprims_of_the_same_dimensions_share_one_read_only_tessellation(scene_path):
+    """Proxy shapes: spheres of one radius share one tessellation (made once), each prim placed by
+    its own transform; another radius, axis or kind makes its own."""
+    from authoring import add_camera, new_stage
+
+    from warp_blur.usd.tessellate import _trimesh_shape
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    for i in range(3):
+        UsdGeom.Sphere.Define(stage, f"/World/S{i}").AddTranslateOp().Set(Gf.Vec3d(3.0 * i, 0, 0))
+    UsdGeom.Sphere.Define(stage, "/World/Big").CreateRadiusAttr(2.0)
+    UsdGeom.Cylinder.Define(stage, "/World/CZ")
+    long_x = UsdGeom.Cylinder.Define(stage, "/World/CX")
+    long_x.CreateAxisAttr("X")
+    long_x.CreateHeightAttr(4.0)
+    stage.GetRootLayer().Save()
+    _trimesh_shape.cache_clear()
+    _, _, scene = _scene(path)
+    pts = {u.path: u.points_at(1.0) for u in scene.units}
+    assert pts["/World/S0"] is pts["/World/S1"] is pts["/World/S2"] and not pts["/World/S0"].flags.writeable
+    assert _trimesh_shape.cache_info().misses == 4    # radius 1, radius 2, a z and an x cylinder
+    np.testing.assert_allclose(np.linalg.norm(pts["/World/Big"], axis=1), 2.0, atol=1e-6)
+    np.testing.assert_allclose(np.abs(pts["/World/CX"]).max(axis=0), [2.0, 1.0, 1.0], atol=1e-6)   # height along x
+    centres = [scene.snapshot(1.0).positions[scene.tri_vertices[scene.tri_unit == i]].mean(axis=(0, 1))
+               for i in range(3)]
+    np.testing.assert_allclose(np.array(centres)[:, 0] - centres[0][0], [0.0, 3.0, 6.0], atol=1e-6)
+
+
 def test_invalid_geometry_is_named_or_skipped(scene_path):
     from authoring import add_camera, add_mesh, new_stage
     path = scene_path()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from pxr import Usd, UsdGeom
 
@@ -95,47 +97,55 @@ def _number(attr: Usd.Attribute, time: Usd.TimeCode) -> float:
 
 
 def _tessellate(prim: Usd.Prim, time: Usd.TimeCode) -> tuple[np.ndarray, np.ndarray, bool] | None:
-    import trimesh   # imported where used: it costs ~0.6 s at start-up
-
-    mesh: "trimesh.Trimesh"
-    smooth = False
+    """(points (N, 3) float64, triangles (T, 3) int32, smooth) of an implicit gprim at `time`;
+    shapes of the same kind and dimensions share one read-only pair (_trimesh_shape)."""
     if prim.IsA(UsdGeom.Cube):   # USD's own topology, so per-face and per-vertex primvars line up
         size = _number(UsdGeom.Cube(prim).GetSizeAttr(), time)
         tris, _ = triangulate(np.full(6, 4), CUBE_INDICES)
         return CUBE_POINTS * size, tris, False
-    elif prim.IsA(UsdGeom.Sphere):
-        r = _number(UsdGeom.Sphere(prim).GetRadiusAttr(), time)
-        mesh = trimesh.creation.icosphere(subdivisions=3, radius=r)
-        smooth = True
-    elif prim.IsA(UsdGeom.Cylinder):
-        g = UsdGeom.Cylinder(prim)
-        mesh = trimesh.creation.cylinder(radius=_number(g.GetRadiusAttr(), time),
-                                         height=_number(g.GetHeightAttr(), time), sections=32)
-        mesh.apply_transform(_axis_rotation(g.GetAxisAttr().Get(time)))
-    elif prim.IsA(UsdGeom.Cone):
-        g = UsdGeom.Cone(prim)
-        h = _number(g.GetHeightAttr(), time)
-        mesh = trimesh.creation.cone(radius=_number(g.GetRadiusAttr(), time), height=h, sections=32)
-        mesh.apply_translation((0, 0, -h / 2))
-        mesh.apply_transform(_axis_rotation(g.GetAxisAttr().Get(time)))
-    elif prim.IsA(UsdGeom.Capsule):
-        g = UsdGeom.Capsule(prim)
-        mesh = trimesh.creation.capsule(height=_number(g.GetHeightAttr(), time),
-                                        radius=_number(g.GetRadiusAttr(), time), count=[16, 16])
-        mesh.apply_translation(-mesh.bounds.mean(axis=0))
-        mesh.apply_transform(_axis_rotation(g.GetAxisAttr().Get(time)))
-        smooth = True
-    elif prim.IsA(UsdGeom.Plane):
+    if prim.IsA(UsdGeom.Plane):
         g = UsdGeom.Plane(prim)
         w, ln = _number(g.GetWidthAttr(), time) / 2, _number(g.GetLengthAttr(), time) / 2
         pts = np.array([[-w, -ln, 0], [w, -ln, 0], [w, ln, 0], [-w, ln, 0]], np.float64)
         tris = np.array([[0, 1, 2], [0, 2, 3]], np.int32)
-        axis = g.GetAxisAttr().Get(time)
-        pts = (pts @ _axis_rotation(axis)[:3, :3].T)
+        pts = (pts @ _axis_rotation(g.GetAxisAttr().Get(time))[:3, :3].T)
         return pts, tris, False
+    for schema, kind in ((UsdGeom.Sphere, "sphere"), (UsdGeom.Cylinder, "cylinder"), (UsdGeom.Cone, "cone"),
+                         (UsdGeom.Capsule, "capsule")):
+        if prim.IsA(schema):
+            g = schema(prim)
+            radius = _number(g.GetRadiusAttr(), time)
+            height = 0.0 if kind == "sphere" else _number(g.GetHeightAttr(), time)
+            axis = "Z" if kind == "sphere" else str(g.GetAxisAttr().Get(time))
+            pts, tris = _trimesh_shape(kind, radius, height, axis)
+            return pts, tris, kind in ("sphere", "capsule")
+    return None
+
+
+@functools.lru_cache(maxsize=1024)
+def _trimesh_shape(kind: str, radius: float, height: float, axis: str) -> tuple[np.ndarray, np.ndarray]:
+    """(points, triangles) of a sphere, cylinder, cone or capsule, made by trimesh (~0.2-0.5 ms
+    each) once per kind and dimensions: a stage of a thousand proxy spheres makes one. Read-only:
+    every prim of those dimensions shares them."""
+    import trimesh   # imported where used: it costs ~0.6 s at start-up
+
+    if kind == "sphere":
+        mesh = trimesh.creation.icosphere(subdivisions=3, radius=radius)
+    elif kind == "cylinder":
+        mesh = trimesh.creation.cylinder(radius=radius, height=height, sections=32)
+        mesh.apply_transform(_axis_rotation(axis))
+    elif kind == "cone":
+        mesh = trimesh.creation.cone(radius=radius, height=height, sections=32)
+        mesh.apply_translation((0, 0, -height / 2))
+        mesh.apply_transform(_axis_rotation(axis))
     else:
-        return None
-    return np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int32), smooth
+        mesh = trimesh.creation.capsule(height=height, radius=radius, count=[16, 16])
+        mesh.apply_translation(-mesh.bounds.mean(axis=0))
+        mesh.apply_transform(_axis_rotation(axis))
+    pts, tris = np.array(mesh.vertices, np.float64), np.array(mesh.faces, np.int32)
+    pts.flags.writeable = False
+    tris.flags.writeable = False
+    return pts, tris
 
 
 #: is_closed_surface tests surfaces of at most this many triangles in plain Python
