@@ -2,17 +2,20 @@
 UsdGeom.XformCache gives prim by prim (~8 µs a prim and time: 3000 animated props cost an
 accumulation frame's 76 snapshots 1.9 s).
 
-Between two authored samples USD interpolates each op's value linearly (an `orient` quaternion by
-slerp). So over a frame's window [lo, hi], an op's value at any time is the interpolation of its
-values at the window's breakpoints (its ends and every sample time inside it), read from USD once
-a frame. The op matrices are then built and multiplied for every prim of an op-stack signature at
-once (row vectors, the last op of xformOpOrder on the left, as UsdGeom.Xformable composes them;
-the ops of animated ancestors above the prim's), under the world transform of the nearest ancestor
-that holds still. What this does not follow (held interpolation, splines, an inverted scale or
-matrix, an `orient` not of unit length, an op that does not read, more than MAX_BREAKPOINTS
-samples in the window) is left to USD:
-`LinearTransforms.placed` says which prims it places. Values of float-precision ops interpolate in
-float64 here and in float32 in USD: agreement to ~1e-7 relative there, ~1e-12 for double ops."""
+Between two authored samples USD interpolates each op's value linearly. So over a frame's window
+[lo, hi], an op's value at any time is the interpolation of its values at the window's breakpoints
+(its ends and every sample time inside it), read from USD once a frame. The op matrices are then
+built and multiplied for every prim of an op-stack signature at once (row vectors, the last op of
+xformOpOrder on the left, as UsdGeom.Xformable composes them; the ops of animated ancestors above
+the prim's), under the world transform of the nearest ancestor that holds still. What this does
+not follow is left to USD (`LinearTransforms.placed` says which prims it places): held
+interpolation, splines, an inverted scale or matrix, an op that does not read, more than
+MAX_BREAKPOINTS samples in the window, and `orient` ops, which USD slerps (linearly where two
+quaternions are within 1e-5 of parallel, leaving them off unit length) and turns into a rotation
+from the quaternion as it stands: near the identity a length off by 2e-6 turns a glTF asset's cube
+by 2e-3 rad, which normalising here would not reproduce. Values of float-precision ops
+interpolate in float64 here and in float32 in USD: agreement to ~1e-7 relative there, ~1e-12 for
+double ops."""
 
 from __future__ import annotations
 
@@ -29,7 +32,7 @@ _ROTATE1 = {_T.TypeRotateX: 0, _T.TypeRotateY: 1, _T.TypeRotateZ: 2}
 _TRANSLATE1 = {_T.TypeTranslateX: 0, _T.TypeTranslateY: 1, _T.TypeTranslateZ: 2}
 _SCALE1 = {_T.TypeScaleX: 0, _T.TypeScaleY: 1, _T.TypeScaleZ: 2}
 _SPLINES = hasattr(Usd.Attribute, "HasSpline")   # USD 24.11 on: a scalar op may hold a spline
-_SUPPORTED = ({_T.TypeTranslate, _T.TypeScale, _T.TypeOrient, _T.TypeTransform} | set(_ROTATE3) | set(_ROTATE1)
+_SUPPORTED = ({_T.TypeTranslate, _T.TypeScale, _T.TypeTransform} | set(_ROTATE3) | set(_ROTATE1)
               | set(_TRANSLATE1) | set(_SCALE1))
 
 
@@ -77,15 +80,14 @@ def _interior_samples(attrs: list, lo: float, hi: float) -> list[float]:
 
 
 def _op_size(kind) -> int:
-    return 16 if kind == _T.TypeTransform else 4 if kind == _T.TypeOrient else \
-        1 if kind in _ROTATE1 or kind in _TRANSLATE1 or kind in _SCALE1 else 3
+    return 16 if kind == _T.TypeTransform else 1 if kind in _ROTATE1 or kind in _TRANSLATE1 or kind in _SCALE1 else 3
 
 
-def _values_array(raw: list, kind, shape: tuple) -> np.ndarray:
-    """raw USD values (Gf vectors, matrices, quaternions, floats, None) as a float64 array of
-    `shape` ((K, B, n)), NaN where one does not read or is not of the op's size: one NumPy call for
-    vectors and matrices (their buffers), else value by value."""
-    if kind != _T.TypeOrient and all(v is not None for v in raw):
+def _values_array(raw: list, shape: tuple) -> np.ndarray:
+    """raw USD values (Gf vectors, matrices, floats, None) as a float64 array of `shape`
+    ((K, B, n)), NaN where one does not read or is not of the op's size: one NumPy call (their
+    buffers) where all read alike, else value by value."""
+    if all(v is not None for v in raw):
         try:
             return np.array(raw, np.float64).reshape(shape)
         except (TypeError, ValueError):
@@ -93,10 +95,7 @@ def _values_array(raw: list, kind, shape: tuple) -> np.ndarray:
     rows = []
     for v in raw:
         x = None
-        if isinstance(v, (Gf.Quatd, Gf.Quatf, Gf.Quath)):
-            im = v.GetImaginary()
-            x = np.array([v.GetReal(), im[0], im[1], im[2]], np.float64)
-        elif v is not None:
+        if v is not None:
             try:
                 x = np.asarray(v, np.float64).reshape(-1)
             except (TypeError, ValueError):
@@ -120,46 +119,9 @@ def _axis_rotations(axis: int, degrees: np.ndarray) -> np.ndarray:
     return m
 
 
-def _slerp(q0: np.ndarray, q1: np.ndarray, a: float) -> np.ndarray:
-    """(K, 4) unit quaternions (w, x, y, z) a of the way from q0 to q1 (K, 4) along the shorter
-    arc, as GfSlerp."""
-    q0 = q0 / np.linalg.norm(q0, axis=1, keepdims=True)
-    q1 = q1 / np.linalg.norm(q1, axis=1, keepdims=True)
-    dot = np.sum(q0 * q1, axis=1)
-    q1 = np.where(dot[:, None] < 0.0, -q1, q1)
-    dot = np.abs(dot)
-    theta = np.arccos(np.clip(dot, -1.0, 1.0))
-    sin_t = np.sin(theta)
-    near = sin_t < 1e-6
-    safe = np.where(near, 1.0, sin_t)
-    w0 = np.where(near, 1.0 - a, np.sin((1.0 - a) * theta) / safe)
-    w1 = np.where(near, a, np.sin(a * theta) / safe)
-    q = w0[:, None] * q0 + w1[:, None] * q1
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
-
-
-def _quat_matrices(q: np.ndarray) -> np.ndarray:
-    """(K, 4, 4) row-vector rotations of unit quaternions (K, 4) (w, x, y, z)."""
-    w, x, y, z = q.T
-    m = np.zeros((len(q), 4, 4))
-    m[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    m[:, 0, 1] = 2 * (x * y + w * z)
-    m[:, 0, 2] = 2 * (x * z - w * y)
-    m[:, 1, 0] = 2 * (x * y - w * z)
-    m[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    m[:, 1, 2] = 2 * (y * z + w * x)
-    m[:, 2, 0] = 2 * (x * z + w * y)
-    m[:, 2, 1] = 2 * (y * z - w * x)
-    m[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    m[:, 3, 3] = 1.0
-    return m
-
-
 def _op_matrices(kind, lo: np.ndarray, hi: np.ndarray, a: float) -> np.ndarray:
     """(K, 4, 4) matrices of K ops of one kind at a fraction a of the window (values lo, hi (K, n))."""
     k = len(lo)
-    if kind == _T.TypeOrient:
-        return _quat_matrices(_slerp(lo, hi, a))
     v = lo + (hi - lo) * a
     if kind == _T.TypeTransform:
         return v.reshape(k, 4, 4).copy()
@@ -191,7 +153,7 @@ MAX_BREAKPOINTS = 16
 class LinearTransforms:
     """Local-to-world transforms over a window [lo, hi] of those of `prims` that op_structure
     handles: every op's values read at the window's breakpoints (its ends and the samples inside
-    it), linear (slerp for `orient`) between them; one NumPy pass per op-stack signature.
+    it), linear between them; one NumPy pass per op-stack signature.
     holders[i] (any object, e.g. the prim's transforms_at) keeps prim i's op_structure across
     frames; None to find it again."""
 
@@ -230,15 +192,10 @@ class LinearTransforms:
         # per signature: (members (K,), per op (K, B, n) values at the breakpoints, (K, 4, 4) bases)
         times = [float(t) for t in self.breakpoints]
         for signature, rows in by_signature.items():
-            values = [_values_array([attrs[j].Get(t) for _, attrs, _ in rows for t in times], kind,
+            values = [_values_array([attrs[j].Get(t) for _, attrs, _ in rows for t in times],
                                     (len(rows), len(times), _op_size(kind)))
                       for j, (kind, _) in enumerate(signature)]
             ok = np.logical_and.reduce([np.isfinite(v).all(axis=(1, 2)) for v in values])
-            for (kind, _), v in zip(signature, values):
-                if kind == _T.TypeOrient:
-                    # GfSlerp weighs the quaternions as authored: only unit ones (to float rounding)
-                    # follow the arc slerp here takes; a zero or scaled one is USD's to place
-                    ok &= (np.abs(np.linalg.norm(v, axis=2) - 1.0) < 1e-5).all(axis=1)
             if not ok.any():
                 continue
             members = np.array([i for i, _, _ in rows])[ok]
