@@ -10,13 +10,6 @@ from pxr import Usd, UsdGeom
 from ..core.log import warn_once
 
 
-def triangulate(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray | None = None,
-                left_handed: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Fan-triangulate polygons. Returns (tris (T,3) int32, face index of each triangle (T,))."""
-    tris, face_of_tri, _ = triangulate_corners(counts, indices, holes, left_handed)
-    return tris, face_of_tri
-
-
 def triangulate_corners(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray | None = None,
                         left_handed: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Fan-triangulate polygons. Returns (tris (T,3) int32, face index of each triangle (T,),
@@ -74,9 +67,19 @@ def tessellate_gprim(prim: Usd.Prim, time: Usd.TimeCode) -> tuple | None:
         return None
     pts, tris, smooth = out
     if prim.IsA(UsdGeom.Cube):
-        tris, face_of_tri, corners = triangulate_corners(np.full(6, 4), CUBE_INDICES)
+        _, face_of_tri, corners = _cube_topology()   # tris is the same table
         return pts, tris, smooth, face_of_tri, corners
     return pts, tris, smooth, np.arange(len(tris)), None
+
+
+@functools.lru_cache(maxsize=1)
+def _cube_topology() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(triangles (12, 3), face of each (12,), face-vertex position of each corner (12, 3)) of
+    USD's cube, triangulated once for every cube (read-only)."""
+    out = triangulate_corners(np.full(6, 4), CUBE_INDICES)
+    for a in out:
+        a.flags.writeable = False
+    return out
 
 
 def _number(attr: Usd.Attribute, time: Usd.TimeCode) -> float:
@@ -101,8 +104,7 @@ def _tessellate(prim: Usd.Prim, time: Usd.TimeCode) -> tuple[np.ndarray, np.ndar
     shapes of the same kind and dimensions share one read-only pair (_trimesh_shape)."""
     if prim.IsA(UsdGeom.Cube):   # USD's own topology, so per-face and per-vertex primvars line up
         size = _number(UsdGeom.Cube(prim).GetSizeAttr(), time)
-        tris, _ = triangulate(np.full(6, 4), CUBE_INDICES)
-        return CUBE_POINTS * size, tris, False
+        return CUBE_POINTS * size, _cube_topology()[0], False
     if prim.IsA(UsdGeom.Plane):
         g = UsdGeom.Plane(prim)
         w, ln = _number(g.GetWidthAttr(), time) / 2, _number(g.GetLengthAttr(), time) / 2
