@@ -35,6 +35,7 @@ from ..core.parallel import launch_pixels
 from ..core.affine import invert_affine
 from ..kernels.raster import render_depth_motion, render_sharp, render_sharp_depth_motion
 from ..usd.normals import vertex_normals
+from .velocity_buffers import camera_motion, neighbour_maxima, soft_half_velocities, tile_maxima
 
 SOFT_Z = wp.constant(0.01)
 
@@ -102,34 +103,6 @@ def gather_blur(width: int, height: int, color: wp.array(dtype=wp.vec4), depth: 
     out[pix, 3] = result[3]
 
 
-def camera_motion_from_depth(ctx: FrameContext, depth: np.ndarray, cfw_open: np.ndarray, cfw_center: np.ndarray,
-                             cfw_close: np.ndarray) -> np.ndarray:
-    """(H, W, 2) screen motion (pixels, open -> close) of static points seen at `depth`, from the
-    camera's motion alone: unproject with the centre camera, reproject with open and close (where
-    nothing is hit, the direction of the pixel's ray: the dome turns with the camera)."""
-    proj = ctx.proj
-    h, w = depth.shape
-    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64) + 0.5
-    wx, wy = proj.pixel_window_coords(xs, ys)
-    z = np.where(np.isfinite(depth), depth, 0.0).astype(np.float64)
-    if proj.orthographic:
-        p = np.stack([wx, wy, -z, np.ones_like(z)], -1)
-    else:
-        p = np.stack([wx * z, wy * z, -z, np.ones_like(z)], -1)
-    far = ~np.isfinite(depth)
-    if not proj.orthographic:
-        # nothing hit: the dome, infinitely far, moves with the camera's turn alone (a direction, w = 0)
-        p[far] = np.stack([wx[far], wy[far], -np.ones(far.sum()), np.zeros(far.sum())], -1)
-    center_to_world = invert_affine(cfw_center)
-    p_open = (p @ (center_to_world @ cfw_open))[..., :3]
-    p_close = (p @ (center_to_world @ cfw_close))[..., :3]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        motion = proj.project(p_close) - proj.project(p_open)
-    behind = far & ((p_open[..., 2] >= 0) | (p_close[..., 2] >= 0))    # a turn of 90° or more
-    motion[~np.isfinite(motion).all(-1) | behind | (far & proj.orthographic)] = 0.0
-    return motion
-
-
 def normals_from_depth(ctx: FrameContext, depth: np.ndarray) -> np.ndarray:
     """(H, W, 3) camera-space normals from depth-buffer gradients (zero where unknown)."""
     proj = ctx.proj
@@ -143,56 +116,6 @@ def normals_from_depth(ctx: FrameContext, depth: np.ndarray) -> np.ndarray:
     n = np.cross(dy, dx)
     n /= np.linalg.norm(n, axis=-1, keepdims=True) + 1e-30
     return np.nan_to_num(n)
-
-
-def box_blur(a: np.ndarray, r: int, axis: int) -> np.ndarray:
-    """Mean over a (2r+1)-wide window along `axis`, zeros beyond the edges (a convolution with a
-    box kernel, mode "same"), from cumulative sums."""
-    a = np.moveaxis(a, axis, 0)
-    n = a.shape[0]
-    c = np.concatenate([np.zeros((1,) + a.shape[1:]), np.cumsum(a, axis=0)])
-    i = np.arange(n)
-    out = (c[np.minimum(i + r + 1, n)] - c[np.maximum(i - r, 0)]) / (2 * r + 1)
-    return np.moveaxis(out, 0, axis)
-
-
-def soft_edge_velocity(v: np.ndarray, radius: float) -> np.ndarray:
-    """Velocity spread past silhouettes: half-res box blur of (v·mask, mask), mask divided out."""
-    if radius <= 0:
-        return v
-    h, w, _ = v.shape
-    h2, w2 = (h + 1) // 2, (w + 1) // 2
-    pad = np.zeros((h2 * 2, w2 * 2, 2))
-    pad[:h, :w] = v
-    low = pad.reshape(h2, 2, w2, 2, 2).mean(axis=(1, 3))
-    mask = (np.linalg.norm(low, axis=-1) > 1e-3).astype(np.float64)
-    r = max(1, int(round(radius / 2)))
-
-    def blur(a):
-        return box_blur(box_blur(a, r, 0), r, 1)
-    num = np.stack([blur(low[..., 0] * mask), blur(low[..., 1] * mask)], -1)
-    den = blur(mask)[..., None]
-    soft = np.where(den > 1e-6, num / np.maximum(den, 1e-6), 0.0)
-    up = soft.repeat(2, axis=0).repeat(2, axis=1)[:h, :w]
-    moving = np.linalg.norm(v, axis=-1, keepdims=True) > 1e-3
-    return np.where(moving, v, up)
-
-
-def tile_neighbor_max(vhalf: np.ndarray, tile: int) -> tuple[np.ndarray, int]:
-    """(tiles_y*tiles_x, 2) neighbour-max half velocities (largest in each 3×3 block of tile maxima)."""
-    h, w, _ = vhalf.shape
-    ty, tx = (h + tile - 1) // tile, (w + tile - 1) // tile
-    pad = np.zeros((ty * tile, tx * tile, 2))
-    pad[:h, :w] = vhalf
-    blocks = pad.reshape(ty, tile, tx, tile, 2).transpose(0, 2, 1, 3, 4).reshape(ty, tx, tile * tile, 2)
-    idx = np.linalg.norm(blocks, axis=-1).argmax(axis=-1)
-    tmax = np.take_along_axis(blocks, idx[..., None, None], axis=2)[:, :, 0]
-    padded = np.zeros((ty + 2, tx + 2, 2))
-    padded[1:-1, 1:-1] = tmax
-    cands = np.stack([padded[1 + dy:1 + dy + ty, 1 + dx:1 + dx + tx] for dy in (-1, 0, 1) for dx in (-1, 0, 1)], 2)
-    best = np.linalg.norm(cands, axis=-1).argmax(axis=-1)
-    nmax = np.take_along_axis(cands, best[..., None, None], axis=2)[:, :, 0]
-    return nmax.reshape(-1, 2), tx
 
 
 #: sharp passes the velocity method averages where opacity is fractional: presence at consecutive
@@ -291,31 +214,37 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
         with ctx.timed("velocity"):
             launch_pixels(render_depth_motion, ctx.num_pixels,
                           lambda first, _n: [view, geo, b, u, 0, 2, first, depth_w, motion_w], dev, s.threads)
+    threads = s.threads
     with ctx.timed("velocity"):
-        depth = depth_w.numpy().reshape(h, w)
-        velocity = motion_w.numpy().reshape(h, w, 2).astype(np.float64)
         if camera_moves:
-            velocity += camera_motion_from_depth(ctx, depth, cfw[0], cfw[1], cfw[2])
-        ctx.aov_motion = velocity.astype(np.float32)
-        ctx.aov_depth = depth.astype(np.float32)
+            camera_motion(depth_w, motion_w, ctx.proj, invert_affine(cfw[1]) @ cfw[0],
+                          invert_affine(cfw[1]) @ cfw[2], dev, threads)
+        # copies: the device buffers go back to the allocator when the frame ends
+        depth = depth_w.numpy().reshape(h, w).copy()
+        ctx.aov_depth = depth
+        ctx.aov_motion = motion_w.numpy().reshape(h, w, 2).copy()
+        velocity = motion_w
         if s.front_blur != 1.0 or s.back_blur != 1.0:
+            v = ctx.aov_motion.astype(np.float64)
             n = normals_from_depth(ctx, depth)
             # screen-space facing: the normal's x/y (y down on screen) against the motion
-            facing = n[..., 0] * velocity[..., 0] - n[..., 1] * velocity[..., 1]
-            velocity *= np.where(facing >= 0, s.front_blur, s.back_blur)[..., None]
-        velocity = soft_edge_velocity(velocity, s.soft_edge_radius)
-        vhalf = 0.5 * velocity
-        max_r = float(np.linalg.norm(vhalf, axis=-1).max()) if vhalf.size else 0.0
+            facing = n[..., 0] * v[..., 0] - n[..., 1] * v[..., 1]
+            v *= np.where(facing >= 0, s.front_blur, s.back_blur)[..., None]
+            velocity = wp.array(v.reshape(-1, 2).astype(np.float32), dtype=wp.vec2, device=dev)
+        vh = soft_half_velocities(velocity, w, h, s.soft_edge_radius, dev, threads)
+        # the longest half velocity (from 8-pixel tiles) sets the tiles' size: the largest blur radius
+        tmax, tiles_x, tiles_y = tile_maxima(vh, w, h, 8, dev, threads)
+        max_r = float(np.linalg.norm(tmax.numpy().astype(np.float64), axis=-1).max()) if w * h else 0.0
         tile = int(np.clip(np.ceil(max_r), 8, 64))
-        nmax, tiles_x = tile_neighbor_max(vhalf, tile)
+        if tile != 8:
+            tmax, tiles_x, tiles_y = tile_maxima(vh, w, h, tile, dev, threads)
+        nm = neighbour_maxima(tmax, tiles_x, tiles_y, dev, threads)
     if max_r <= 0.5:
         ctx.counters.update({"velocity_max_px": 2 * max_r, "gather": False})
         return sharp.numpy()
     out = wp.zeros((ctx.num_pixels, 4), dtype=float, device=dev)
     color = wp.array(sharp.numpy().astype(np.float32), dtype=wp.vec4, device=dev)
     z = wp.array(np.where(np.isfinite(depth), depth, 1e30).astype(np.float32).ravel(), dtype=float, device=dev)
-    vh = wp.array(vhalf.reshape(-1, 2).astype(np.float32), dtype=wp.vec2, device=dev)
-    nm = wp.array(nmax.astype(np.float32), dtype=wp.vec2, device=dev)
     samples = s.resolved_samples
     with ctx.timed("gather"):
         launch_pixels(gather_blur, ctx.num_pixels,
