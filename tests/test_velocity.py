@@ -100,3 +100,21 @@ def test_presence_passes_render_only_the_tiles_that_hold_translucent_surfaces(sc
     every = wb.render(path, **kw)
     assert every.stats["presence_pixels"] == 1.0
     np.testing.assert_array_equal(tiles.rgba, every.rgba)
+
+
+@pytest.mark.parametrize("extrude", [False, True])
+def test_probed_instants_are_not_read_again(scene_path, monkeypatch, extrude):
+    """The open and centre instants that the static-frame probes read are reused, never read
+    twice; extrusion moves the centre's vertices in a copy, not in the probes' snapshot."""
+    from warp_blur.usd.scene import Scene
+    times = []
+    snapshot = Scene.snapshot
+
+    def counted(self, time, with_normals=True):
+        times.append(time)
+        return snapshot(self, time, with_normals)
+    monkeypatch.setattr(Scene, "snapshot", counted)
+    path = emissive_quad_stage(scene_path(), translate_samples={0.5: (-1, 0, 0), 1.5: (1, 0, 0)}, dome=None)
+    r = wb.render(path, frame=1, resolution=RES, method="velocity", velocity_extrude=extrude)
+    assert r.stats["gather"] is True
+    assert sorted(times) == [0.5, 1.0, 1.5]   # probes at the centre and open, then close

@@ -124,6 +124,14 @@ class FrameContext:
         snap.fraction = float(u)
         return snap
 
+    def probed_snapshot(self, u: float, with_normals: bool = True) -> Snapshot:
+        """The snapshot at shutter fraction u that static_frame's probes took, if they took it (the
+        centre's has normals), else a new one. Shared: replace it (dataclasses.replace) to change it."""
+        snap = self.probe_snapshots.get(u)
+        if snap is None or (with_normals and u != 0.5):
+            return self.snapshot(u, with_normals)
+        return snap
+
     def static_frame(self) -> Snapshot | None:
         """The centre snapshot when nothing changes over the shutter (geometry, visibility, camera
         and lights identical at open, centre and close, no fractional opacity), else None: such a

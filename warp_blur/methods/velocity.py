@@ -25,6 +25,8 @@ cannot appear, since only geometry has velocity; overlapping motions are approxi
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import warp as wp
 
@@ -172,7 +174,9 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
     s = ctx.settings
     dev = ctx.device
     h, w = ctx.proj.height, ctx.proj.width
-    snaps = [ctx.snapshot(0.0), ctx.snapshot(0.5), ctx.snapshot(1.0)]
+    # open and close need positions only (normals come from the centre), as static_frame probed them
+    snaps = [ctx.probed_snapshot(0.0, with_normals=False), ctx.probed_snapshot(0.5),
+             ctx.probed_snapshot(1.0, with_normals=False)]
     cfw = [sn.cam_from_world for sn in snaps]
     camera_moves = not (np.array_equal(cfw[0], cfw[1]) and np.array_equal(cfw[1], cfw[2]))
     with ctx.timed("velocity"):
@@ -181,6 +185,7 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
         knots = [sn.positions @ m[:3, :3] + m[3, :3] for sn, m in zip(snaps, to_center)]
         center = snaps[1]
         if s.velocity_extrude:
+            center = dataclasses.replace(center)   # the probes' snapshot is shared
             n = vertex_normals(center.positions, ctx.scene.tri_vertices)
             forward = np.einsum("ij,ij->i", n, knots[2] - knots[0]) > 0
             center.positions = np.where(forward[:, None], knots[2], knots[0])
