@@ -27,6 +27,6 @@ def bin_in_entry_order(monkeypatch) -> None:
     from warp_blur.methods.frame import FrameContext
     original_bin = FrameContext.bin_groups
 
-    def entry_order(self, positions, entry_tri, entry_k0, entry_k1, groups, near_depth=None):
-        return original_bin(self, positions, entry_tri, entry_k0, entry_k1, groups, None)
+    def entry_order(self, positions, entry_tri, entry_k0, entry_k1, groups, nearest_first=False):
+        return original_bin(self, positions, entry_tri, entry_k0, entry_k1, groups, False)
     monkeypatch.setattr(FrameContext, "bin_groups", entry_order)

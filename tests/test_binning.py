@@ -178,8 +178,12 @@ def test_slab_rejects_change_no_image(monkeypatch, method, scene):
     path = os.path.join(SCENES, f"{scene}.usda")
     kw = dict(frame=2, method=method, resolution=(96, 72), samples=8 if method != "analytic" else 4)
     with_slabs = wb.render(path, **kw).rgba
-    real = frame.swept_bands
-    monkeypatch.setattr(frame, "swept_bands", lambda *a, **k: real(*a, **k)[:, :0])   # no slabs at all
+    real = frame.entry_bounds
+
+    def no_slabs(*a, **k):
+        box, keep, bands, near = real(*a, **k)
+        return box, keep, bands[:, :0], near
+    monkeypatch.setattr(frame, "entry_bounds", no_slabs)   # no slabs at all
     assert np.array_equal(with_slabs, wb.render(path, **kw).rgba)
 
 

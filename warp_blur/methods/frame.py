@@ -11,8 +11,7 @@ from typing import Callable
 import numpy as np
 import warp as wp
 
-from ..raster.binning import (SAMPLE_MARGIN_PX, TILE_SIZE, TileBins, bin_entries, entry_near_depth, entry_pixel_bounds,
-                              swept_bands)
+from ..raster.binning import SAMPLE_MARGIN_PX, TILE_SIZE, TileBins, bin_entries, entry_bounds
 from ..core.camera import Projection
 from ..raster.culling import hidden_back_faces
 from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_shading, make_view
@@ -228,21 +227,21 @@ class FrameContext:
 
     def bin(self, positions: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray,
             entry_k1: np.ndarray) -> TileBins:
-        """Screen-tile bins of all entries, each tile's nearest first (entry_near_depth): a walk for
-        the nearest hit stops at the first entry beyond it."""
-        near = entry_near_depth(positions, self.scene.tri_vertices, entry_tri, entry_k0, entry_k1)
-        return self.bin_groups(positions, entry_tri, entry_k0, entry_k1, [np.ones(len(entry_tri), bool)], near)[0]
+        """Screen-tile bins of all entries, each tile's nearest first: a walk for the nearest hit
+        stops at the first entry beyond it."""
+        return self.bin_groups(positions, entry_tri, entry_k0, entry_k1, [np.ones(len(entry_tri), bool)], True)[0]
 
     def bin_groups(self, positions: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray,
-                   groups: list[np.ndarray], near_depth: np.ndarray | None = None) -> list[TileBins]:
+                   groups: list[np.ndarray], nearest_first: bool = False) -> list[TileBins]:
         """Separate screen-tile bins for each group (a boolean mask over the entries, shape (E,)),
-        so a kernel can walk e.g. a tile's static entries apart from its moving ones; each tile's
-        list in ascending near_depth (E,) when given (see bin_entries)."""
+        so a kernel can walk e.g. a tile's static entries apart from its moving ones; with
+        nearest_first each tile's list runs in ascending nearest depth of its entries' vertices
+        (see bin_entries), else in entry order."""
         with self.timed("binning"):
-            margin = SAMPLE_MARGIN_PX
-            boxes, keep = entry_pixel_bounds(self.proj, positions, self.scene.tri_vertices, entry_tri,
-                                             entry_k0, entry_k1, margin)
-            bands = swept_bands(self.proj, positions, self.scene.tri_vertices, entry_tri, entry_k0, entry_k1, margin)
+            boxes, keep, bands, near = entry_bounds(self.proj, positions, self.scene.tri_vertices, entry_tri,
+                                                    entry_k0, entry_k1, SAMPLE_MARGIN_PX,
+                                                    threads=self.settings.threads)
+            near_depth = near if nearest_first else None
             out = [bin_entries(self.proj, boxes, keep & group, TILE_SIZE, near_depth, bands) for group in groups]
         self.counters["bin_pairs"] = self.counters.get("bin_pairs", 0) + sum(b.num_pairs for b in out)
         return out

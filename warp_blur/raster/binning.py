@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.camera import Projection
+from .screen_bounds import CROSSES_NEAR, DEPTH_KEEP, screen_bounds
 from .tile_lists import tile_lists
 
 TILE_SIZE = 16
@@ -42,46 +43,73 @@ class TileBins:
         return len(self.tile_entries)
 
 
-def entry_pixel_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarray,
-                       entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray,
-                       margin: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """Pixel bounding boxes (E, 4) float64 [x0, y0, x1, y1] and a keep mask (E,) of entries."""
-    # vertex-major (6, E, ...) so the reductions over an entry's six points run along the first
-    # axis (contiguous rows, ~40x faster than reducing a short middle axis)
-    vi_t = tri_vertices[entry_tri].T                                    # (3, E)
+def entry_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarray, entry_tri: np.ndarray,
+                 entry_k0: np.ndarray, entry_k1: np.ndarray, margin: float = 1.0, slabs: bool = True,
+                 threads: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+    """(pixel boxes (E, 4) float64 [x0, y0, x1, y1], keep mask (E,), swept slabs (swept_bands;
+    None unless `slabs`), nearest view depth (E,) of each entry's vertices over its span (the key
+    that orders tile lists front first)) of the entries: triangle entry_tri[i] moving linearly
+    between knots entry_k0[i] and entry_k1[i] of positions (K+1, V, 3), camera space."""
     if len(entry_tri) and (entry_k0 == entry_k0[0]).all() and (entry_k1 == entry_k0[0]).all():
         # one knot for all (a sharp instant, a shadow map): each vertex projected once, then
-        # gathered per corner (the same values as projecting the corners)
-        knot = positions[entry_k0[0]]
-        corners = lambda mask: knot[vi_t[:, mask]]                      # noqa: E731  (3, E', 3)
-        depth = -knot[:, 2].astype(np.float64)[vi_t]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r = proj.project(knot)[vi_t]                                # (3, E, 2)
-    else:
-        pts = entry_corners(positions, tri_vertices, entry_tri, entry_k0, entry_k1)
-        corners = lambda mask: pts[:3, mask]                            # noqa: E731
-        depth = -pts[..., 2].astype(np.float64)                         # (6, E)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r = proj.project(pts)                                       # (6, E, 2)
-    keep = ~((depth > proj.far).all(axis=0) | (depth < proj.near).all(axis=0))
-    crosses = (depth < proj.near).any(axis=0) & (not proj.orthographic)
-    # a NaN (0/0 at depth 0) only comes from an entry crossing the near plane: full box below
-    lo = r.min(axis=0) - margin
-    hi = r.max(axis=0) + margin
-    box = np.concatenate([lo, hi], axis=1)
+        # gathered per corner (the same values as projecting the corners); nothing moves, so the
+        # box test alone (slabs cost more to compute and test than they save there)
+        box, keep, near = _one_knot_bounds(proj, positions[entry_k0[0]], tri_vertices, entry_tri, margin)
+        return box, keep, (pass_all_slabs(len(entry_tri)) if slabs else None), near
+    moving = bool((entry_k0 != entry_k1).any())
+    near, box, flags, bands = screen_bounds(proj, positions, tri_vertices, entry_tri, entry_k0, entry_k1, margin,
+                                            BAND_SLABS if slabs and moving else 0, threads)
+    if slabs and not moving:
+        bands = pass_all_slabs(len(entry_tri))
+    keep = (flags & DEPTH_KEEP) != 0
+    crosses = (flags & CROSSES_NEAR) != 0
     still = crosses & (entry_k0 == entry_k1)
     if still.any():
         # a still entry crossing the near plane: the box of its part in front of the plane
-        box[still] = clipped_hull_boxes(proj, corners(still), margin)
-        crosses = crosses & ~still
+        box[still] = clipped_hull_boxes(proj, entry_corners(positions, tri_vertices, entry_tri[still],
+                                                            entry_k0[still], entry_k1[still])[:3], margin)
+    crosses &= ~still
     if crosses.any():
         # a moving one: its triangle stays inside the hull of its six vertices, so the box of the
         # hull's part in front of the plane (a ground running under a moving camera no longer
         # takes the whole screen)
-        box[crosses] = clipped_hull_boxes(proj, pts[:, crosses], margin)
+        box[crosses] = clipped_hull_boxes(proj, entry_corners(positions, tri_vertices, entry_tri[crosses],
+                                                              entry_k0[crosses], entry_k1[crosses]), margin)
+    return box, _on_screen(proj, box, keep, margin), bands, near
+
+
+def _one_knot_bounds(proj: Projection, knot: np.ndarray, tri_vertices: np.ndarray, entry_tri: np.ndarray,
+                     margin: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """entry_bounds' boxes, keep mask and nearest depths where every entry is at one knot (V, 3)."""
+    # vertex-major (3, E, ...) so the reductions over a triangle's corners run along the first
+    # axis (contiguous rows, ~40x faster than reducing a short middle axis)
+    vi_t = tri_vertices[entry_tri].T                                    # (3, E)
+    depth = -knot[:, 2].astype(np.float64)[vi_t]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = proj.project(knot)[vi_t]                                    # (3, E, 2)
+    keep = ~((depth > proj.far).all(axis=0) | (depth < proj.near).all(axis=0))
+    crosses = (depth < proj.near).any(axis=0) & (not proj.orthographic)
+    # a NaN (0/0 at depth 0) only comes from an entry crossing the near plane: full box below
+    box = np.concatenate([r.min(axis=0) - margin, r.max(axis=0) + margin], axis=1)
+    if crosses.any():
+        # crossing the near plane: the box of its part in front of the plane
+        box[crosses] = clipped_hull_boxes(proj, knot[vi_t[:, crosses]], margin)
+    return box, _on_screen(proj, box, keep, margin), depth.min(axis=0)
+
+
+def _on_screen(proj: Projection, box: np.ndarray, keep: np.ndarray, margin: float) -> np.ndarray:
+    """Boxes not finite become the whole screen (in place); keep, less boxes wholly off screen."""
     finite = np.isfinite(box).all(axis=1)
     box[~finite] = (-margin, -margin, proj.width + margin, proj.height + margin)
-    keep &= (box[:, 2] >= 0) & (box[:, 0] <= proj.width) & (box[:, 3] >= 0) & (box[:, 1] <= proj.height)
+    return keep & (box[:, 2] >= 0) & (box[:, 0] <= proj.width) & (box[:, 3] >= 0) & (box[:, 1] <= proj.height)
+
+
+def entry_pixel_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarray,
+                       entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray,
+                       margin: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel bounding boxes (E, 4) float64 [x0, y0, x1, y1] and a keep mask (E,) of entries
+    (entry_bounds' first two)."""
+    box, keep, _, _ = entry_bounds(proj, positions, tri_vertices, entry_tri, entry_k0, entry_k1, margin, slabs=False)
     return box, keep
 
 
@@ -120,41 +148,7 @@ def swept_bands(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarra
     the near plane or have no finite projection. When nothing moves (a sharp instant's pass, a
     shadow map) the result is one pass-all slab each, (E, 1, 4): there slabs cost more to compute
     and test than they save (accumulation's binning on `large` 0.42 -> 1.1 s for 16 instants)."""
-    moving = np.nonzero(entry_k0 != entry_k1)[0]
-    out = pass_all_slabs(len(entry_tri), BAND_SLABS if len(moving) else 1)
-    if len(moving) == 0:
-        return out   # a sharp instant or a shadow map: the box test alone (slabs cost more than they save)
-    pts = entry_corners(positions, tri_vertices, entry_tri[moving], entry_k0[moving], entry_k1[moving])
-    depth = -pts[..., 2].astype(np.float64)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):   # behind the eye: not finite, no slabs
-        r = proj.project(pts)                                           # (6, E, 2)
-        motion = r[3:].mean(axis=0) - r[:3].mean(axis=0)                # (E, 2)
-        length = np.hypot(motion[:, 0], motion[:, 1])
-    finite = np.isfinite(r)
-    ok = (finite[..., 0] & finite[..., 1]).all(axis=0)
-    if not proj.orthographic:
-        ok &= (depth >= proj.near).all(axis=0)
-    if not ok.any():
-        return out
-    # compress keeps (6, E_ok, 2) C-ordered (r[:, ok] would not): the reductions over the six
-    # points below then run along contiguous rows (~10x faster)
-    r = np.compress(ok, r, axis=1)
-    normals = [np.stack([-motion[ok, 1], motion[ok, 0]], axis=1)]      # across the motion
-    for a, b in ((0, 1), (1, 2), (2, 0)):                               # each edge's normal at the start
-        edge = r[b] - r[a]
-        normals.append(np.stack([-edge[:, 1], edge[:, 0]], axis=1))
-    travels = length[ok] > 2.0
-    block = pass_all_slabs(len(travels), BAND_SLABS)                   # (E_ok, S, 4)
-    for k, n in enumerate(normals):
-        size = np.hypot(n[:, 0], n[:, 1])
-        use = (size > 0.0) & np.isfinite(size) & (travels if k == 0 else True)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            n = n / size[:, None]
-        along = r[..., 0] * n[None, :, 0] + r[..., 1] * n[None, :, 1]   # (6, E_ok)
-        slab = np.stack([n[:, 0], n[:, 1], along.min(axis=0) - margin, along.max(axis=0) + margin], axis=1)
-        block[use, k] = slab[use]
-    out[moving[ok]] = block
-    return out
+    return entry_bounds(proj, positions, tri_vertices, entry_tri, entry_k0, entry_k1, margin)[2]
 
 
 def clipped_hull_boxes(proj: Projection, pts: np.ndarray, margin: float) -> np.ndarray:
@@ -195,15 +189,6 @@ def tile_mask_pixels(tiles: np.ndarray, tile_size: int, width: int, height: int)
     bool, in an image of width × height."""
     mask = np.repeat(np.repeat(tiles, tile_size, axis=0), tile_size, axis=1)[:height, :width]
     return np.nonzero(mask.ravel())[0]
-
-
-def entry_near_depth(positions: np.ndarray, tri_vertices: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray,
-                     entry_k1: np.ndarray) -> np.ndarray:
-    """(E,) nearest view depth of each entry's six vertices (its triangle at both span ends): a
-    lower bound of its depth anywhere over the span, the key that orders tile lists front first."""
-    if len(entry_tri) == 0:
-        return np.zeros(0)
-    return -entry_corners(positions, tri_vertices, entry_tri, entry_k0, entry_k1)[..., 2].max(axis=0)
 
 
 def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size: int = TILE_SIZE,

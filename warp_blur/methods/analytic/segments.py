@@ -23,7 +23,6 @@ from pxr import UsdGeom
 from ...core.camera import Projection
 from ...core.memory import check_entries_fit
 from ...core.parallel import Background, default_threads
-from ...raster.binning import entry_near_depth
 from ...raster.culling import hidden_back_faces
 from ..frame import MOTION_PROBES
 from ...core.log import warn_once
@@ -342,9 +341,8 @@ def prepare_motion(ctx):
                   geo.entry_k0, geo.entry_k1], outputs=[geo.entry_corners], device=ctx.device)
     # fractional opacity changes with time slots, so its entries take the moving path even when still
     static = (plan.entry_k0 == plan.entry_k1) & ~ctx.scene.tri_fractional[plan.entry_tri]
-    near = entry_near_depth(plan.positions, ctx.scene.tri_vertices, plan.entry_tri, plan.entry_k0, plan.entry_k1)
     tile_bins = ctx.bin_groups(plan.positions, plan.entry_tri, plan.entry_k0, plan.entry_k1, [static, ~static],
-                               near_depth=near)
+                               nearest_first=True)
     bins = tuple(make_bins(b, ctx.device) for b in tile_bins)
     shading = with_shadow_free(shading, geo, len(plan.entry_tri), ctx.device, ctx.counters)
     return plan, geo, bins, shading, ctx.view(tile_bins[0])
