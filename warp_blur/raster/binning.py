@@ -2,9 +2,11 @@
 
 An entry's screen footprint over its time span is bounded by the projections of its vertices at
 both ends (a linearly moving point projects to a straight screen segment while in front of the
-eye). Entries with a vertex in front of the near plane at either end are given the whole screen
-(their visible part is found per sample); entries entirely beyond the far plane or entirely
-behind the near plane, or off screen, are dropped.
+eye). Entries with a vertex in front of the near plane at either end are given the box of the
+part of their vertices' hull in front of it (their visible part is found per sample); entries
+entirely beyond the far plane or entirely behind the near plane, or off screen, are dropped.
+Moving entries' boxes, slabs and nearest depths come from one Warp kernel (screen_bounds.py);
+the lists themselves from tile_lists.py's kernels.
 """
 
 from __future__ import annotations
