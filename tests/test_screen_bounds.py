@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 
 from warp_blur.core.camera import Projection
-from warp_blur.raster.binning import BAND_SLABS, clipped_hull_boxes, entry_bounds
+from warp_blur.raster.binning import BAND_SLABS, clipped_hull_boxes, entry_bounds, entry_corners, pass_all_slabs
 
 
 # ------------------------------------------------------------------ the NumPy forms (the oracle)
 def entry_pixel_bounds_numpy(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarray,
-                       entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray,
-                       margin: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """Pixel bounding boxes (E, 4) float64 [x0, y0, x1, y1] and a keep mask (E,) of entries."""
+                             entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray,
+                             margin: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """binning.entry_pixel_bounds as it was (session 56)."""
     # vertex-major (6, E, ...) so the reductions over an entry's six points run along the first
     # axis (contiguous rows, ~40x faster than reducing a short middle axis)
     vi_t = tri_vertices[entry_tri].T                                    # (3, E)
@@ -27,7 +27,7 @@ def entry_pixel_bounds_numpy(proj: Projection, positions: np.ndarray, tri_vertic
         with np.errstate(divide="ignore", invalid="ignore"):
             r = proj.project(knot)[vi_t]                                # (3, E, 2)
     else:
-        pts = entry_corners_numpy(positions, tri_vertices, entry_tri, entry_k0, entry_k1)
+        pts = entry_corners(positions, tri_vertices, entry_tri, entry_k0, entry_k1)
         corners = lambda mask: pts[:3, mask]                            # noqa: E731
         depth = -pts[..., 2].astype(np.float64)                         # (6, E)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -54,44 +54,14 @@ def entry_pixel_bounds_numpy(proj: Projection, positions: np.ndarray, tri_vertic
     return box, keep
 
 
-def entry_corners_numpy(positions: np.ndarray, tri_vertices: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray,
-                  entry_k1: np.ndarray) -> np.ndarray:
-    """(6, E, 3) the entries' three vertices at their span's start knot, then at its end knot,
-    from positions (K+1, V, 3). One np.take over the flattened knots (~4x faster than indexing
-    with a knot array and a vertex array)."""
-    vi_t = tri_vertices[entry_tri].T                                    # (3, E)
-    nv = positions.shape[1]
-    index = np.concatenate([entry_k0[None, :] * nv + vi_t, entry_k1[None, :] * nv + vi_t], axis=0)
-    return np.take(positions.reshape(-1, 3), index, axis=0)
-
-
-
-
-def pass_all_slabs_numpy(entries: int, slabs: int = 1) -> np.ndarray:
-    """(entries, slabs, 4) float32 slabs (0, 0, -1, 1): every pixel passes (no slab reject)."""
-    out = np.zeros((entries, slabs, 4), np.float32)
-    out[..., 2], out[..., 3] = -1.0, 1.0
-    return out
-
-
 def swept_bands_numpy(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarray, entry_tri: np.ndarray,
-                entry_k0: np.ndarray, entry_k1: np.ndarray, margin: float = 1.0) -> np.ndarray:
-    """(E, BAND_SLABS, 4) float32 slabs (nx, ny, lo, hi): every pixel an entry covers over its span
-    has lo <= nx·x + ny·y <= hi in each. A moving triangle stays inside the convex hull of its six
-    projected vertices (in front of the eye), so each slab over them is exact as a bound. Slab 0
-    runs across the screen motion (the triangle's width where its box is the whole streak's: what
-    rejects most of a long diagonal streak's box), slabs 1-3 along the normals of the triangle's
-    edges at the span's start: with slab 0 they are the hexagon a translating triangle sweeps,
-    which rejects the corners of its box. Slab 0 is (0, 0, -1, 1), no reject, for entries that
-    barely move (< 2 px); all are for entries that hold still (their box is tested alone), cross
-    the near plane or have no finite projection. When nothing moves (a sharp instant's pass, a
-    shadow map) the result is one pass-all slab each, (E, 1, 4): there slabs cost more to compute
-    and test than they save (accumulation's binning on `large` 0.42 -> 1.1 s for 16 instants)."""
+                      entry_k0: np.ndarray, entry_k1: np.ndarray, margin: float = 1.0) -> np.ndarray:
+    """binning.swept_bands as it was (session 56)."""
     moving = np.nonzero(entry_k0 != entry_k1)[0]
-    out = pass_all_slabs_numpy(len(entry_tri), BAND_SLABS if len(moving) else 1)
+    out = pass_all_slabs(len(entry_tri), BAND_SLABS if len(moving) else 1)
     if len(moving) == 0:
         return out   # a sharp instant or a shadow map: the box test alone (slabs cost more than they save)
-    pts = entry_corners_numpy(positions, tri_vertices, entry_tri[moving], entry_k0[moving], entry_k1[moving])
+    pts = entry_corners(positions, tri_vertices, entry_tri[moving], entry_k0[moving], entry_k1[moving])
     depth = -pts[..., 2].astype(np.float64)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):   # behind the eye: not finite, no slabs
         r = proj.project(pts)                                           # (6, E, 2)
@@ -111,7 +81,7 @@ def swept_bands_numpy(proj: Projection, positions: np.ndarray, tri_vertices: np.
         edge = r[b] - r[a]
         normals.append(np.stack([-edge[:, 1], edge[:, 0]], axis=1))
     travels = length[ok] > 2.0
-    block = pass_all_slabs_numpy(len(travels), BAND_SLABS)                   # (E_ok, S, 4)
+    block = pass_all_slabs(len(travels), BAND_SLABS)                   # (E_ok, S, 4)
     for k, n in enumerate(normals):
         size = np.hypot(n[:, 0], n[:, 1])
         use = (size > 0.0) & np.isfinite(size) & (travels if k == 0 else True)
@@ -125,7 +95,7 @@ def swept_bands_numpy(proj: Projection, positions: np.ndarray, tri_vertices: np.
 
 
 def entry_near_depth_numpy(positions, tri_vertices, entry_tri, entry_k0, entry_k1):
-    return -entry_corners_numpy(positions, tri_vertices, entry_tri, entry_k0, entry_k1)[..., 2].max(axis=0)
+    return -entry_corners(positions, tri_vertices, entry_tri, entry_k0, entry_k1)[..., 2].max(axis=0)
 
 
 # ------------------------------------------------------------------ inputs
