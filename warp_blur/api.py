@@ -23,7 +23,8 @@ from .usd.framing import FRAMING_CAMERA_PATH, is_framing_camera, place_framing_c
 from .core.errors import SettingsError, StageError, UserError
 from .output.exr_attributes import standard_attributes
 from .core.memory import check_frame_fits
-from .methods import get_method
+from .methods import KERNEL_MODULES, get_method
+from .core.preload import preload_modules
 from .usd.material_cache import MaterialCache
 from .usd.unit_cache import UnitCache
 from .usd.scene import Scene
@@ -143,6 +144,8 @@ class Renderer:
         if not shutter.exposed:
             rgba = np.zeros((h, w, 4), np.float32)
         else:
+            # the method's kernel modules built side by side (once a process; quick from the cache)
+            preload_modules(KERNEL_MODULES[s.method], device, s.threads)
             static = ctx.static_frame()
             if static is not None:  # nothing moves: every method's answer is the one sharp image
                 rgba = ctx.render_static(static).reshape(h, w, 4).astype(np.float32)
