@@ -15,6 +15,7 @@ from typing import Sequence
 
 import warp as wp
 
+from . import progress
 from .parallel import default_threads
 
 #: tests switch this off to see which modules a method loads by itself
@@ -36,6 +37,12 @@ def preload_modules(names: Sequence[str], device: str, threads: int | None = Non
         return
     for name in todo:
         importlib.import_module(name)
+
+    def load(name: str) -> None:
+        wp.load_module(name, device=device)
+        progress.band_done()
+    progress.stage("kernels")   # a frame's bar shows the modules built (seconds each on an empty cache)
+    progress.bands_started(len(todo))
     workers = max(1, min(len(todo), threads or default_threads()))
     with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="warp_blur_preload") as pool:
-        list(pool.map(lambda name: wp.load_module(name, device=device), todo))
+        list(pool.map(load, todo))
