@@ -99,3 +99,24 @@ def test_leaving_the_floor_out_of_a_moving_lamps_maps_changes_no_pixel(scene_pat
     assert np.abs(out.rgba - full.rgba).max() <= 1e-6
     off = wb.render(path, frame=1, method=method, resolution=RES, shadows="off", aovs=(), **kw)
     assert np.abs(out.rgba - off.rgba).max() > 0.03      # there is a shadow
+
+
+def test_size_prefilter_keeps_the_triangles_numpy_would():
+    """raster/triangle_sizes.triangles_at_least, the plane search's prefilter, against NumPy's
+    cross products: the same triangles at and above a bound (far from it: rounding aside)."""
+    import numpy as np
+    from warp_blur.raster.triangle_sizes import triangles_at_least
+    rng = np.random.default_rng(3)
+    positions = rng.normal(0, 1, (3000, 3)) * np.where(rng.random((3000, 1)) < 0.5, 0.01, 1.0)
+    tri_vertices = rng.integers(0, 3000, (2000, 3))
+    tri_vertices[:20, 2] = tri_vertices[:20, 1]            # degenerate: zero area
+    tris = np.arange(0, 2000, 3)
+    a = positions[tri_vertices[tris, 0]]
+    area2 = np.linalg.norm(np.cross(positions[tri_vertices[tris, 1]] - a, positions[tri_vertices[tris, 2]] - a), axis=1)
+    bound = float(np.median(area2))
+    want = tris[area2 >= bound]
+    got = triangles_at_least(positions, tri_vertices, tris, bound)
+    near = np.abs(area2 - bound) <= 1e-12 * bound
+    assert 100 < len(want) < len(tris)
+    assert set(got[~np.isin(got, tris[near])]) == set(want[~np.isin(want, tris[near])])
+    assert len(triangles_at_least(positions, tri_vertices, tris[:0], bound)) == 0

@@ -14,9 +14,9 @@ MethodFn = Callable[[FrameContext], np.ndarray]
 
 
 #: kernel modules used by every method (the sharp and shadow-map rasterisers, back-face culling,
-#: tile lists, vertex normals), the longest to build first
+#: tile lists, the shadow casters' triangle sizes, vertex normals), the longest to build first
 _SHARED = ("warp_blur.kernels.raster", "warp_blur.kernels.shadow_raster", "warp_blur.raster.tile_lists",
-           "warp_blur.raster.culling", "warp_blur.usd.normals")
+           "warp_blur.raster.culling", "warp_blur.raster.triangle_sizes", "warp_blur.usd.normals")
 
 #: the Warp modules each method's frames launch kernels of (core/preload.py builds them side by side
 #: before the first frame; tests/test_preload.py checks each list against the modules a method loads

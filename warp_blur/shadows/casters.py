@@ -20,6 +20,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..raster.triangle_sizes import triangles_at_least
 from ..usd.lights import DISTANT
 from .layout import LightLayout, Sample, light_frame
 
@@ -75,12 +76,18 @@ def bounding_planes(s: Sample, tri_vertices: np.ndarray) -> list[PlaneGroup]:
     hi = proj.max(axis=1)
     extent = float(max(hi[i] + hi[j] for i, j in _OPPOSITE_AXES)) + 1e-30
     tol = PLANE_TOL * extent
+    min_area2 = 2.0 * (extent / MIN_SIDE) ** 2
+    # the kernel drops the small triangles first (half the bound: its rounding may differ from
+    # NumPy's), so the passes below gather only the few that can hold a bounding plane
+    visible = triangles_at_least(s.positions, tri_vertices, visible, 0.5 * min_area2)
+    if len(visible) == 0:
+        return []
     tv = tri_vertices[visible]
     p = s.positions
     a = p[tv[:, 0]]
     n = _cross(p[tv[:, 1]] - a, p[tv[:, 2]] - a)
     area2 = np.sqrt(np.einsum("ij,ij->i", n, n))
-    ok = np.nonzero(area2 >= 2.0 * (extent / MIN_SIDE) ** 2)[0]
+    ok = np.nonzero(area2 >= min_area2)[0]
     # the extreme vertices along the axes first (most planes fail there), then the diagonals
     for rows in (_AXES, ~_AXES):
         if len(ok) == 0:
