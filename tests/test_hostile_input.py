@@ -425,3 +425,35 @@ def test_a_frame_whose_motion_entries_would_not_fit_is_refused_once_they_are_pla
     again = wb.render(path, frame=1, resolution=(32, 24), method=method, samples=4, aovs=(),
                       frame_memory_limit_mb=planned * 1.01 / 2**20)
     assert again.stats["entries"] == entries
+
+
+def _rotation_variant(tmp_path, old: str, new: str) -> str:
+    """usd_scenes/rotation.usda with one line's text replaced (a hand-made hostile stage)."""
+    text = open(os.path.join(os.path.dirname(__file__), "..", "usd_scenes", "rotation.usda")).read()
+    assert old in text
+    path = str(tmp_path / "variant.usda")
+    with open(path, "w") as f:
+        f.write(text.replace(old, new, 1))
+    return path
+
+
+def test_a_time_sample_at_a_non_finite_time_exits_2_naming_usds_failure(tmp_path):
+    """USD fails its own verification when asked whether a value with a `nan:` time sample may
+    vary (found by the fuzzer, seed 5704): one line naming the stage and USD's failure, exit 2,
+    no output (before: a Tf.ErrorException reported as a failed frame, exit 1)."""
+    path = _rotation_variant(tmp_path, "1.5: 0,", "nan: 0,")
+    out = str(tmp_path / "out.exr")
+    code, err = _cli("render", path, "-o", out, "--method", "velocity", "--resolution", "32x24")
+    lines = [ln for ln in err if "WARNING" not in ln]
+    assert code == 2 and len(lines) == 1 and "USD cannot evaluate" in lines[0] and "frame 1" in lines[0]
+    assert not os.path.exists(out)
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")   # NumPy's overflow notes on 1e300 (the CLI hides them)
+@pytest.mark.parametrize("method", ["stochastic", "velocity"])
+def test_a_cube_of_size_minus_1e300_under_a_light_renders(tmp_path, method):
+    """A cube of size -1e300 (found by the fuzzer, seed 5704): the shadow casters' size bound
+    overflowed Python's float power (OverflowError, a failed frame); now no plane qualifies."""
+    path = _rotation_variant(tmp_path, "double size = 1.4", "double size = -1e300")
+    r = wb.render(path, frame=1, method=method, resolution=(32, 24), samples=2, shadow_map_size=64)
+    assert np.isfinite(r.rgba).all()

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import warp as wp
+from pxr import Tf
 
 from .core import log, progress
 from .core.allocator import keep_freed_memory
@@ -79,6 +80,13 @@ def init_warp(device: str) -> None:
         raise SettingsError(f"device '{device}' is not available here (available: {', '.join(sorted(names))})")
 
 
+def usd_error_text(exc: Exception) -> str:
+    """USD's message in a Tf.ErrorException, on one line (without the source file and line)."""
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    text = lines[-1] if lines else type(exc).__name__
+    return text.rsplit(" : ", 1)[-1].strip() or text
+
+
 class Renderer:
     """A stage opened once and rendered at many frames with the same settings."""
 
@@ -119,7 +127,11 @@ class Renderer:
         threads take turns: a frame places the framing camera in the stage and may add to the
         kept material table (each frame still uses every core)."""
         with self._lock:
-            return self._render(frame)
+            try:
+                return self._render(frame)
+            except Tf.ErrorException as exc:   # USD's own verification failing on the stage's data
+                raise StageError(f"USD cannot evaluate {self.scene_path} at frame {frame:g}: "
+                                 f"{usd_error_text(exc)}") from None
 
     def _render(self, frame: float) -> RenderResult:
         t_start = time.perf_counter()

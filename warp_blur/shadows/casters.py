@@ -76,7 +76,8 @@ def bounding_planes(s: Sample, tri_vertices: np.ndarray) -> list[PlaneGroup]:
     hi = proj.max(axis=1)
     extent = float(max(hi[i] + hi[j] for i, j in _OPPOSITE_AXES)) + 1e-30
     tol = PLANE_TOL * extent
-    min_area2 = 2.0 * (extent / MIN_SIDE) ** 2
+    with np.errstate(over="ignore"):   # a scene of extent ~1e300 (hostile input): no plane then
+        min_area2 = 2.0 * np.square(extent / MIN_SIDE)
     # the kernel drops the small triangles first (half the bound: its rounding may differ from
     # NumPy's), so the passes below gather only the few that can hold a bounding plane
     visible = triangles_at_least(s.positions, tri_vertices, visible, 0.5 * min_area2)
