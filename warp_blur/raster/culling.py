@@ -19,7 +19,6 @@ import numpy as np
 import warp as wp
 
 from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
-from ..core.parallel import launch_pixels
 
 
 @wp.func
@@ -31,14 +30,11 @@ def det3(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d) -> wp.float64:
 
 @wp.kernel(enable_backward=False)
 def triangle_dets(positions: wp.array2d(dtype=wp.vec3d), tri_vertices: wp.array(dtype=wp.vec3i),
-                  tris: wp.array(dtype=wp.int32), first: int,
+                  tris: wp.array(dtype=wp.int32),
                   # output
                   dets: wp.array2d(dtype=wp.float64)):
-    """dets[k, i] = det[a, b, c] of triangle tris[i]'s vertices at knot k (positions (K+1, V)),
-    for the flat index k * len(tris) + i = first + tid."""
-    j = first + wp.tid()
-    k = j // tris.shape[0]
-    i = j - k * tris.shape[0]
+    """dets[k, i] = det[a, b, c] of triangle tris[i]'s vertices at knot k (positions (K+1, V))."""
+    k, i = wp.tid()
     vi = tri_vertices[tris[i]]
     dets[k, i] = det3(positions[k, vi[0]], positions[k, vi[1]], positions[k, vi[2]])
 
@@ -47,13 +43,11 @@ def triangle_dets(positions: wp.array2d(dtype=wp.vec3d), tri_vertices: wp.array(
 def back_facing_spans(positions: wp.array2d(dtype=wp.vec3d), tri_vertices: wp.array(dtype=wp.vec3i),
                       entry_tri: wp.array(dtype=wp.int32), entry_k0: wp.array(dtype=wp.int32),
                       entry_k1: wp.array(dtype=wp.int32), sign: wp.array(dtype=wp.float64),
-                      first: int,
                       # output
                       back: wp.array(dtype=wp.int8)):
-    """back[i] = 1 when all four Bernstein coefficients of det[a(t), b(t), c(t)] over entry
-    i = first + tid's span (triangle entry_tri[i] moving linearly from knot entry_k0[i] to
-    entry_k1[i]) have sign[i]."""
-    i = first + wp.tid()
+    """back[i] = 1 when all four Bernstein coefficients of det[a(t), b(t), c(t)] over entry i's span
+    (triangle entry_tri[i] moving linearly from knot entry_k0[i] to entry_k1[i]) have sign[i]."""
+    i = wp.tid()
     vi = tri_vertices[entry_tri[i]]
     k0 = entry_k0[i]
     k1 = entry_k1[i]
@@ -107,9 +101,8 @@ def instance_volume_sign(positions: np.ndarray, tri_vertices: np.ndarray, tri_ob
     obj = tri_object[tris]
     dets = np.zeros((positions.shape[0], len(tris)))
     if len(tris):
-        args = [_vec3d(positions), _int3(tri_vertices), _i32(tris)]
-        out = wp.array(dets, dtype=wp.float64, device="cpu", copy=False)
-        launch_pixels(triangle_dets, dets.size, lambda first, _n: [*args, first, out], "cpu")
+        wp.launch(triangle_dets, dim=dets.shape, inputs=[_vec3d(positions), _int3(tri_vertices), _i32(tris)],
+                  outputs=[wp.array(dets, dtype=wp.float64, device="cpu", copy=False)], device="cpu")
     for k in range(positions.shape[0]):
         vol = np.bincount(obj, weights=dets[k], minlength=n_obj)
         s = np.sign(vol)
@@ -137,9 +130,8 @@ def hidden_back_faces(positions: np.ndarray, tri_vertices: np.ndarray, tri_objec
     if len(cand) == 0:
         return out
     back = np.zeros(len(cand), np.int8)
-    args = [_vec3d(positions), _int3(tri_vertices), _i32(entry_tri[cand]), _i32(entry_k0[cand]), _i32(entry_k1[cand]),
-            wp.array(s[cand], dtype=wp.float64, device="cpu")]
-    flags = wp.array(back, dtype=wp.int8, device="cpu", copy=False)
-    launch_pixels(back_facing_spans, len(cand), lambda first, _n: [*args, first, flags], "cpu")
+    wp.launch(back_facing_spans, dim=len(cand), inputs=[_vec3d(positions), _int3(tri_vertices), _i32(entry_tri[cand]),
+              _i32(entry_k0[cand]), _i32(entry_k1[cand]), wp.array(s[cand], dtype=wp.float64, device="cpu")],
+              outputs=[wp.array(back, dtype=wp.int8, device="cpu", copy=False)], device="cpu")
     out[cand] = back != 0
     return out
