@@ -61,21 +61,39 @@ def soft_depth_compare(za: float, zb: float) -> float:
     return wp.clamp(1.0 - (za - zb) / extent, 0.0, 1.0)
 
 
+#: the depth a pixel with nothing hit (inf) gathers with: far behind everything, and finite
+FAR_Z = wp.constant(1.0e30)
+
+
+@wp.func
+def gather_depth(depth: wp.array(dtype=float), pix: int) -> float:
+    z = depth[pix]
+    if wp.isfinite(z):
+        return z
+    return FAR_Z
+
+
+@wp.func
+def pixel_color(color: wp.array2d(dtype=float), pix: int) -> wp.vec4:
+    return wp.vec4(color[pix, 0], color[pix, 1], color[pix, 2], color[pix, 3])
+
+
 @wp.kernel(enable_backward=False)
-def gather_blur(width: int, height: int, color: wp.array(dtype=wp.vec4), depth: wp.array(dtype=float),
+def gather_blur(width: int, height: int, color: wp.array2d(dtype=float), depth: wp.array(dtype=float),
                 vhalf: wp.array(dtype=wp.vec2), neighbor_max: wp.array(dtype=wp.vec2), tile: int, tiles_x: int,
                 samples: int, sigma: float, seed: int, first_pixel: int,
                 # outputs
                 out: wp.array2d(dtype=float)):
-    """Reconstruct the blurred pixel from the sharp colour, depth and half-velocity buffers."""
+    """Reconstruct the blurred pixel from the sharp colour ((H*W, 4)), view depth (inf where nothing
+    is hit: FAR_Z) and half-velocity buffers, read where the passes wrote them."""
     pix = first_pixel + wp.tid()
     px = pix % width
     py = pix // width
     vn = neighbor_max[(py // tile) * tiles_x + px // tile]
-    cx = color[pix]
+    cx = pixel_color(color, pix)
     result = cx
     if wp.length(vn) > 0.5:
-        zx = depth[pix]
+        zx = gather_depth(depth, pix)
         vx = vhalf[pix]
         lx = wp.max(wp.length(vx), 0.5)
         w_sum = 1.0 / lx
@@ -89,7 +107,7 @@ def gather_blur(width: int, height: int, color: wp.array(dtype=wp.vec4), depth: 
             sy = int(wp.floor(float(py) + 0.5 + vn[1] * t))
             if sx >= 0 and sx < width and sy >= 0 and sy < height and not (sx == px and sy == py):
                 q = sy * width + sx
-                zy = depth[q]
+                zy = gather_depth(depth, q)
                 vy = wp.length(vhalf[q])
                 dist = ln * wp.abs(t)
                 f = soft_depth_compare(zy, zx)
@@ -97,7 +115,7 @@ def gather_blur(width: int, height: int, color: wp.array(dtype=wp.vec4), depth: 
                 a = f * cone(dist, vy) + b * cone(dist, lx) + cylinder(dist, vy) * cylinder(dist, lx) * 2.0
                 a = a * wp.exp(-0.5 * t * t / (sigma * sigma))
                 w_sum = w_sum + a
-                acc = acc + color[q] * a
+                acc = acc + pixel_color(color, q) * a
         result = acc / w_sum
     out[pix, 0] = result[0]
     out[pix, 1] = result[1]
@@ -248,13 +266,11 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
         ctx.counters.update({"velocity_max_px": 2 * max_r, "gather": False})
         return sharp.numpy()
     out = wp.zeros((ctx.num_pixels, 4), dtype=float, device=dev)
-    color = wp.array(sharp.numpy().astype(np.float32), dtype=wp.vec4, device=dev)
-    z = wp.array(np.where(np.isfinite(depth), depth, 1e30).astype(np.float32).ravel(), dtype=float, device=dev)
     samples = s.resolved_samples
-    with ctx.timed("gather"):
+    with ctx.timed("gather"):   # the sharp colour and depth as the passes left them, on the device
         launch_pixels(gather_blur, ctx.num_pixels,
-                      lambda first, _n: [w, h, color, z, vh, nm, tile, tiles_x, samples, 0.5, 1, first, out],
-                      dev, s.threads)
+                      lambda first, _n: [w, h, sharp, depth_w, vh, nm, tile, tiles_x, samples, 0.5, 1, first, out],
+                      dev, threads)
     ctx.counters.update({"velocity_max_px": 2 * max_r, "gather": True, "gather_samples": samples,
                          "velocity_tile": tile, "camera_motion": camera_moves})
     return out.numpy()

@@ -135,7 +135,7 @@ def screen_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np.ndar
     near = np.empty(n, np.float64)
     boxes = np.empty((n, 4), np.float64)
     flags = np.empty(n, np.int8)
-    out_slabs = np.empty((n, max(slabs, 1), 4), np.float32)
+    out_slabs = np.empty((n, slabs, 4) if slabs else (1, 1, 4), np.float32)   # unwritten without slabs
     if n == 0:
         return near, boxes, flags, (out_slabs if slabs else None)
     dev = "cpu"
