@@ -492,3 +492,74 @@ def test_still_prims_are_read_once_a_frame_and_placed_like_usdgeom(scene_path):
             _assert_placed_like_usdgeom(scene, cam, snap, t)
         # a still camera keeps the still group's block (one array); a moving one places it anew
         assert all(b is blocks[0] for b in blocks) != camera_moves
+
+
+def _sphere_field(path, distances, radius=0.5):
+    """An instancer of spheres at these distances in front of a camera at the origin looking -Z,
+    and one Sphere prim per distance beside them."""
+    from authoring import add_camera, new_stage
+    stage = new_stage(path)
+    add_camera(stage, translate=(0, 0, 0))
+    inst = UsdGeom.PointInstancer.Define(stage, "/World/Inst")
+    ball = UsdGeom.Sphere.Define(stage, "/World/Inst/Protos/Ball")
+    ball.CreateRadiusAttr(radius)
+    inst.CreatePrototypesRel().SetTargets([ball.GetPath()])
+    inst.CreateProtoIndicesAttr(Vt.IntArray([0] * len(distances)))
+    inst.CreatePositionsAttr().Set(Vt.Vec3fArray([Gf.Vec3f(0.1 * d, 0, -d) for d in distances]))
+    for i, d in enumerate(distances):
+        s = UsdGeom.Sphere.Define(stage, f"/World/S{i}")
+        s.CreateRadiusAttr(radius)
+        s.AddTranslateOp().Set(Gf.Vec3d(-0.1 * d, 0, -d))
+    stage.GetRootLayer().Save()
+    return path
+
+
+def test_spheres_small_on_screen_take_fewer_triangles(scene_path):
+    """An instancer's sphere instances are split by the icosphere level their size on screen asks
+    for (one unit a level, every instance kept once); Sphere prims take theirs alone; with no
+    image projection known, every sphere keeps the full level."""
+    from warp_blur.usd.stage import projection_at
+    from warp_blur.usd.tessellate import SPHERE_LEVEL_MAX, sphere_levels
+    distances = [2.0, 40.0, 300.0, 3000.0]
+    path = _sphere_field(scene_path(), distances)
+    stage = open_stage(path)
+    cam = choose_camera(stage, None)
+    proj = projection_at(cam, 1.0, (320, 240))
+    scene = Scene(stage, cam, 1.0, Shutter(0.5, 1.5), proj=proj)
+    # on-axis radius in pixels: r f / (d - r), f = 320 px across a 24 mm aperture at 24 mm focal length
+    expect = sphere_levels(np.array([0.5 * 320 / (d - 0.5) for d in distances]))
+    assert list(expect) == [3, 3, 1, 0]
+    tris = {1: 80, 0: 20, 2: 320, 3: 1280}
+    by_name = {u.path: u for u in scene.units}
+    inst_units = [u for name, u in by_name.items() if name.startswith("/World/Inst")]
+    assert sorted(u.num_instances for u in inst_units) == [1, 1, 2]
+    assert {name for name in by_name if name.startswith("/World/Inst")} == {
+        "/World/Inst (prototype Ball)", "/World/Inst (prototype Ball) level 1", "/World/Inst (prototype Ball) level 0"}
+    assert sum(len(u.local_tris) * u.num_instances for u in inst_units) == sum(tris[int(k)] for k in expect)
+    assert [len(by_name[f"/World/S{i}"].local_tris) for i in range(4)] == [tris[int(k)] for k in expect]
+    # the instances' positions are where USD puts them, whatever unit holds them
+    snap = scene.snapshot(1.0)
+    assert np.isfinite(snap.positions).all() and scene.num_triangles == 2 * sum(tris[int(k)] for k in expect)
+    plain = Scene(stage, cam, 1.0, Shutter(0.5, 1.5))   # no projection: the full level for all
+    assert plain.num_triangles == 8 * 1280 and SPHERE_LEVEL_MAX == 3
+
+
+def test_a_sphere_moving_away_changes_level_between_frames(scene_path):
+    """A renderer keeps a still prim's unit across frames; a sphere whose size on screen asks for
+    another level at the next frame is read again at that level, not reused."""
+    import warp_blur as wb
+    from authoring import add_camera, new_stage
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage, translate=(0, 0, 0))
+    s = UsdGeom.Sphere.Define(stage, "/World/Ball")
+    s.CreateRadiusAttr(0.5)
+    op = s.AddTranslateOp()
+    op.Set(Gf.Vec3d(0, 0, -3), 0.0)
+    op.Set(Gf.Vec3d(0, 0, -3), 1.0)
+    op.Set(Gf.Vec3d(0, 0, -3000), 2.0)
+    stage.GetRootLayer().Save()
+    r = wb.Renderer(path, resolution=(160, 120), settings=wb.RenderSettings(method="analytic", aovs=()))
+    stats = [r.render(f).stats for f in (0.0, 0.0, 2.0, 0.0)]
+    assert [st["triangles"] for st in stats] == [1280, 1280, 20, 1280]
+    assert [st["prims_reused"] for st in stats] == [0, 1, 0, 0]   # kept at one level, read again at another

@@ -15,7 +15,7 @@ from typing import Callable
 import numpy as np
 from pxr import Usd, UsdGeom, UsdShade
 
-from ..core.affine import camera_from_world, invert_affine
+from ..core.affine import camera_from_world
 from ..core.errors import InvalidGeometryError
 from .dome import dome_map
 from .lights import dome_radiance, find_lights, headlight_table, light_table
@@ -28,14 +28,12 @@ from .subdivision import mesh_refinement, refined_surface_primvars, refined_tria
 from .skinning import Skins, skinned_points_fn
 from .stage import Shutter
 from .primvars import corner_primvar, grey_corners
-from .tessellate import tessellate_gprim, triangulate_corners
-from .units import (GeomUnit, SmallUnitGroup, UnitRows, held_points, prim_transform_fn, prototype_unit_name,
-                    small_unit_groups)
+from .tessellate import (SPHERE_LEVEL_MAX, gprim_number, sphere_levels, sphere_radius_px, tessellate_gprim,
+                         triangulate_corners)
+from .instancer import IMPLICIT, add_instancer_units
+from .units import (FLAG_DOUBLE_SIDED, FLAG_SMOOTH, GeomUnit, SmallUnitGroup, UnitRows, held_points,
+                    prim_transform_fn, small_unit_groups)
 
-FLAG_DOUBLE_SIDED = 1
-FLAG_SMOOTH = 2
-
-_IMPLICIT = (UsdGeom.Cube, UsdGeom.Sphere, UsdGeom.Cylinder, UsdGeom.Cone, UsdGeom.Capsule, UsdGeom.Plane)
 _SILENT_TYPES = {"Xform", "Scope", "Camera", "", "Material", "Shader", "NodeGraph", "GeomSubset",
                  "RenderSettings", "RenderProduct", "RenderVar", "SkelRoot", "Skeleton", "SkelAnimation"}
 
@@ -124,11 +122,11 @@ class Scene:
                 it.PruneChildren()
                 continue
             if prim.IsA(UsdGeom.PointInstancer):
-                self._add_instancer(prim, t)
+                add_instancer_units(self, prim, t)
                 it.PruneChildren()
             elif prim.IsA(UsdGeom.Mesh):
                 self._read_or_reuse(prim, t, self._add_mesh)
-            elif any(prim.IsA(c) for c in _IMPLICIT):
+            elif any(prim.IsA(c) for c in IMPLICIT):
                 self._read_or_reuse(prim, t, self._add_gprim)
             elif prim.IsA(UsdGeom.Points):     # camera-facing discs
                 self._add_fields(points_unit_fields(self, prim, t))
@@ -144,7 +142,10 @@ class Scene:
         if self.kept_units is None or self._skins.find(prim) is not None:   # a skinned mesh is never kept
             read(prim, t)
             return
-        level = self._refinement_level(prim, t) if read == self._add_mesh else None
+        if read == self._add_mesh:
+            level = self._refinement_level(prim, t)
+        else:
+            level = self._sphere_level(prim) if prim.IsA(UsdGeom.Sphere) else None
         kept = self.kept_units.get(prim, self.materials, level)
         if kept is not None:
             self.units.append(kept)
@@ -336,8 +337,24 @@ class Scene:
             flags=flags, blur_scale=blur, visibility_prims=[prim], tri_materials=tri_materials,
             normals_at=normals_at, corner_opacity=opacity))
 
+    def _sphere_level(self, prim: Usd.Prim) -> int:
+        """An implicit sphere's icosphere level this frame (tessellate.sphere_levels), from its size
+        on screen at the frame time when the image's projection is known; kept per prim for the
+        frame (self._levels), so every shutter time sees the same triangles."""
+        path = str(prim.GetPath())
+        if path not in self._levels:
+            level = SPHERE_LEVEL_MAX
+            if self.proj is not None:
+                to_cam = np.array(self._xf_cache(self.frame).GetLocalToWorldTransform(prim)) \
+                    @ self.cam_from_world(self.frame)
+                radius = gprim_number(UsdGeom.Sphere(prim).GetRadiusAttr(), Usd.TimeCode(self.frame))
+                level = int(sphere_levels(sphere_radius_px(self.proj, to_cam[None], radius))[0])
+            self._levels[path] = level
+        return self._levels[path]
+
     def _add_gprim(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
-        out = tessellate_gprim(prim, t)
+        level = self._sphere_level(prim) if prim.IsA(UsdGeom.Sphere) else SPHERE_LEVEL_MAX
+        out = tessellate_gprim(prim, t, level)
         if out is None:
             return
         pts, tris, smooth, face_of_tri, corners = out
@@ -354,79 +371,6 @@ class Scene:
         """A unit whose fields points.py or curves.py built: double-sided (seen from either side)."""
         if fields:
             self.units.append(GeomUnit(**{**fields, "flags": fields["flags"] | FLAG_DOUBLE_SIDED}))
-
-    def _add_instancer(self, prim: Usd.Prim, t: Usd.TimeCode) -> None:
-        inst = UsdGeom.PointInstancer(prim)
-        path = str(prim.GetPath())
-        protos = inst.GetPrototypesRel().GetForwardedTargets()
-        proto_indices = np.asarray(inst.GetProtoIndicesAttr().Get(t) or [], np.int64)
-        if len(proto_indices) == 0:
-            return
-        bad = proto_indices[(proto_indices < 0) | (proto_indices >= len(protos))]
-        if len(bad):
-            if self._invalid(path, f"protoIndices hold {int(bad[0])}, outside the {len(protos)} prototypes"):
-                return
-        mask = inst.ComputeMaskAtTime(t)
-        mask = np.ones(len(proto_indices), bool) if not mask or len(mask) != len(proto_indices) else np.asarray(mask, bool)
-        base = self.frame
-        n_all = len(proto_indices)
-        at_frame = inst.ComputeInstanceTransformsAtTime(t, t)
-        if at_frame is None or len(at_frame) != n_all:   # USD refuses the instancer (its own diagnostic)
-            if self._invalid(path, f"USD cannot compute its {n_all} instance transforms at time {base:g} "
-                                   f"(positions, orientations or scales do not match protoIndices)"):
-                return
-
-        def all_transforms(time: float) -> np.ndarray:
-            xf = inst.ComputeInstanceTransformsAtTime(Usd.TimeCode(time), Usd.TimeCode(base))
-            if xf is None or len(xf) != n_all:
-                warn_once(f"instcount:{path}", f"{path}: instance count changes over time; holding the frame's instances")
-                xf = inst.ComputeInstanceTransformsAtTime(Usd.TimeCode(base), Usd.TimeCode(base))
-            return np.array([np.array(m, np.float64) for m in xf]).reshape(-1, 4, 4)
-
-        for pi, proto_path in enumerate(protos):
-            sel = np.nonzero((proto_indices == pi) & mask)[0]
-            proto_root = self.stage.GetPrimAtPath(proto_path)
-            if len(sel) == 0 or not proto_root:
-                continue
-            rng = iter(Usd.PrimRange(proto_root, Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)))
-            for sub in rng:
-                if UsdGeom.Imageable(sub).ComputePurpose() in (UsdGeom.Tokens.proxy, UsdGeom.Tokens.guide):
-                    rng.PruneChildren()
-                    continue
-                if sub.IsA(UsdGeom.Mesh):
-                    topo = self._mesh_topology(sub, t)
-                    if topo is None:
-                        continue
-                    tris, face_of_tri, corners, npts, smooth = topo
-                    points_at = self._points_fn(sub, npts)
-                elif any(sub.IsA(c) for c in _IMPLICIT):
-                    out = tessellate_gprim(sub, t)
-                    if out is None:
-                        continue
-                    pts, tris, smooth, face_of_tri, corners = out
-                    npts = len(pts)
-                    points_at = lambda time, p=pts: p  # noqa: E731
-                else:
-                    continue
-                if len(tris) == 0:
-                    continue
-                material, flags, blur = self._common(sub, t)
-                colors, uvs, opacity = self._surface_primvars(sub, t, material, tris, face_of_tri, corners)
-                flags |= FLAG_SMOOTH if smooth else 0
-
-                def transforms_at(time: float, cache: UsdGeom.XformCache, sub=sub, root=proto_root,
-                                  sel=sel) -> np.ndarray:
-                    sub_w = np.array(cache.GetLocalToWorldTransform(sub), np.float64)
-                    root_w = np.array(cache.GetLocalToWorldTransform(root), np.float64)
-                    inst_w = np.array(cache.GetLocalToWorldTransform(prim), np.float64)
-                    sub_in_root = sub_w @ invert_affine(root_w)
-                    return sub_in_root[None] @ all_transforms(time)[sel] @ inst_w[None]
-
-                self.units.append(GeomUnit(
-                    path=prototype_unit_name(path, proto_path, sub.GetPath()), prim=sub, local_tris=tris,
-                    num_points=npts, points_at=points_at, transforms_at=transforms_at,
-                    num_instances=len(sel), corner_colors=colors, corner_uvs=uvs, material=material, flags=flags,
-                    blur_scale=blur, visibility_prims=[prim, sub], corner_opacity=opacity))
 
     # ----------------------------------------------------------------------------- tables
     def _build_tables(self) -> None:

@@ -57,12 +57,58 @@ def _axis_rotation(axis: str) -> np.ndarray:
     return np.eye(4)
 
 
-def tessellate_gprim(prim: Usd.Prim, time: Usd.TimeCode) -> tuple | None:
+#: icosphere subdivisions of an implicit sphere that is large on screen (1280 triangles)
+SPHERE_LEVEL_MAX = 3
+#: how far (pixels) a sphere's facets may fall inside its true surface on screen: spheres small on
+#: screen take the fewest subdivisions that keep to it (sphere_levels)
+SPHERE_SAG_PX = 0.05
+#: the deepest a unit-radius icosphere's facets fall inside the sphere, per subdivision level
+#: (trimesh's icospheres: tests/test_tessellate.py measures them)
+ICOSPHERE_SAG = (0.20535, 0.065828, 0.017753, 0.0045284)
+
+
+def sphere_levels(radius_px: np.ndarray) -> np.ndarray:
+    """(N,) int icosphere subdivisions (0 .. SPHERE_LEVEL_MAX) for spheres whose radii on screen
+    are radius_px (N,) pixels (inf: unknown or at the eye): the fewest whose facets fall at most
+    SPHERE_SAG_PX inside the silhouette, and never more than SPHERE_LEVEL_MAX (the level every
+    sphere had before: large spheres are tessellated as they were)."""
+    r = np.asarray(radius_px, np.float64)
+    level = np.full(r.shape, SPHERE_LEVEL_MAX, np.int64)
+    for s in range(SPHERE_LEVEL_MAX - 1, -1, -1):
+        level[ICOSPHERE_SAG[s] * r <= SPHERE_SAG_PX] = s
+    return level
+
+
+def sphere_radius_px(proj, local_to_cam: np.ndarray, radius: float) -> np.ndarray:
+    """(N,) radii in pixels on screen of a sphere of `radius` (its local units) placed by
+    local_to_cam (N, 4, 4) row-vector matrices under projection proj (core.camera.Projection): the
+    radius scaled by the matrices' largest stretch, over the depth of the sphere's nearest point,
+    and widened by how far off the view axis it sits (a sphere off axis projects to an ellipse
+    longer across it). inf where the sphere reaches the near plane or behind the eye."""
+    m = np.asarray(local_to_cam, np.float64).reshape(-1, 4, 4)
+    stretch = np.linalg.norm(m[:, :3, :3], ord=2, axis=(1, 2)) if len(m) else np.zeros(0)
+    r = abs(float(radius)) * stretch
+    centre = m[:, 3, :3]
+    x0, y0, x1, y1 = proj.window
+    px_per_unit = max(proj.width / abs(x1 - x0), proj.height / abs(y1 - y0))
+    if proj.orthographic:
+        out = r * px_per_unit
+    else:
+        depth = -centre[:, 2]
+        near = depth - r
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            out = r * px_per_unit / near * (np.linalg.norm(centre, axis=1) / depth)
+        out[~(near > max(proj.near, 0.0))] = np.inf
+    out[~np.isfinite(out)] = np.inf
+    return out
+
+
+def tessellate_gprim(prim: Usd.Prim, time: Usd.TimeCode, sphere_level: int = SPHERE_LEVEL_MAX) -> tuple | None:
     """(points (N,3) float64, tris (T,3) int32, smooth, face of each triangle (T,), face-vertex
     position of each corner (T,3) or None) for an implicit gprim, or None if unknown. The cube
     has USD's own faces (primvars of every interpolation apply); the other shapes' faces are
-    their triangles."""
-    out = _tessellate(prim, time)
+    their triangles. A sphere is an icosphere of `sphere_level` subdivisions (sphere_levels)."""
+    out = _tessellate(prim, time, sphere_level)
     if out is None:
         return None
     pts, tris, smooth = out
@@ -82,7 +128,7 @@ def _cube_topology() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return out
 
 
-def _number(attr: Usd.Attribute, time: Usd.TimeCode) -> float:
+def gprim_number(attr: Usd.Attribute, time: Usd.TimeCode) -> float:
     """A gprim's dimension at `time`. A value that is no real number (an attribute authored with a
     type USD does not know, such as `xdouble size`, reads as an unregistered value) gives the
     schema's fallback, with a warning once per attribute."""
@@ -99,15 +145,15 @@ def _number(attr: Usd.Attribute, time: Usd.TimeCode) -> float:
         return fallback
 
 
-def _tessellate(prim: Usd.Prim, time: Usd.TimeCode) -> tuple[np.ndarray, np.ndarray, bool] | None:
+def _tessellate(prim: Usd.Prim, time: Usd.TimeCode, sphere_level: int) -> tuple[np.ndarray, np.ndarray, bool] | None:
     """(points (N, 3) float64, triangles (T, 3) int32, smooth) of an implicit gprim at `time`;
     shapes of the same kind and dimensions share one read-only pair (_trimesh_shape)."""
     if prim.IsA(UsdGeom.Cube):   # USD's own topology, so per-face and per-vertex primvars line up
-        size = _number(UsdGeom.Cube(prim).GetSizeAttr(), time)
+        size = gprim_number(UsdGeom.Cube(prim).GetSizeAttr(), time)
         return CUBE_POINTS * size, _cube_topology()[0], False
     if prim.IsA(UsdGeom.Plane):
         g = UsdGeom.Plane(prim)
-        w, ln = _number(g.GetWidthAttr(), time) / 2, _number(g.GetLengthAttr(), time) / 2
+        w, ln = gprim_number(g.GetWidthAttr(), time) / 2, gprim_number(g.GetLengthAttr(), time) / 2
         pts = np.array([[-w, -ln, 0], [w, -ln, 0], [w, ln, 0], [-w, ln, 0]], np.float64)
         tris = np.array([[0, 1, 2], [0, 2, 3]], np.int32)
         pts = (pts @ _axis_rotation(g.GetAxisAttr().Get(time))[:3, :3].T)
@@ -116,23 +162,29 @@ def _tessellate(prim: Usd.Prim, time: Usd.TimeCode) -> tuple[np.ndarray, np.ndar
                          (UsdGeom.Capsule, "capsule")):
         if prim.IsA(schema):
             g = schema(prim)
-            radius = _number(g.GetRadiusAttr(), time)
-            height = 0.0 if kind == "sphere" else _number(g.GetHeightAttr(), time)
+            radius = gprim_number(g.GetRadiusAttr(), time)
+            height = 0.0 if kind == "sphere" else gprim_number(g.GetHeightAttr(), time)
             axis = "Z" if kind == "sphere" else str(g.GetAxisAttr().Get(time))
-            pts, tris = _trimesh_shape(kind, radius, height, axis)
+            pts, tris = _trimesh_shape(kind, radius, height, axis, int(sphere_level) if kind == "sphere" else 0)
             return pts, tris, kind in ("sphere", "capsule")
     return None
 
 
 @functools.lru_cache(maxsize=1024)
-def _trimesh_shape(kind: str, radius: float, height: float, axis: str) -> tuple[np.ndarray, np.ndarray]:
-    """(points, triangles) of a sphere, cylinder, cone or capsule, made by trimesh (~0.2-0.5 ms
-    each) once per kind and dimensions: a stage of a thousand proxy spheres makes one. Read-only:
-    every prim of those dimensions shares them."""
+def _trimesh_shape(kind: str, radius: float, height: float, axis: str, level: int = SPHERE_LEVEL_MAX
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """(points, triangles) of a sphere (an icosphere of `level` subdivisions; below
+    SPHERE_LEVEL_MAX scaled to the full level's surface area), cylinder, cone or capsule, made by trimesh (~0.2-0.5 ms each) once per kind and dimensions: a stage of a
+    thousand proxy spheres makes one. Read-only: every prim of those dimensions shares them."""
     import trimesh   # imported where used: it costs ~0.6 s at start-up
 
     if kind == "sphere":
-        mesh = trimesh.creation.icosphere(subdivisions=3, radius=radius)
+        mesh = trimesh.creation.icosphere(subdivisions=level, radius=radius)
+        if level < SPHERE_LEVEL_MAX:
+            # as much area seen on average as the full level's (a convex body's mean silhouette is
+            # a quarter of its surface): a field of small spheres keeps its coverage
+            full = trimesh.creation.icosphere(subdivisions=SPHERE_LEVEL_MAX, radius=1.0).area
+            mesh.apply_scale(float(np.sqrt(full / trimesh.creation.icosphere(subdivisions=level, radius=1.0).area)))
     elif kind == "cylinder":
         mesh = trimesh.creation.cylinder(radius=radius, height=height, sections=32)
         mesh.apply_transform(_axis_rotation(axis))

@@ -16,6 +16,11 @@ from .stage import prims_visible, transform_may_vary, visibility_varies
 from .xform_ops import LinearTransforms
 
 
+#: GeomUnit.flags bits: seen from both sides; shaded with interpolated vertex normals
+FLAG_DOUBLE_SIDED = 1
+FLAG_SMOOTH = 2
+
+
 def prototype_unit_name(instancer: str, proto_path: Sdf.Path, sub_path: Sdf.Path) -> str:
     """A readable name for a PointInstancer prototype's mesh: `/World/Ring (prototype Cone)`, or
     `/World/Ring (prototype Cone, Body/Mesh)` for a prim inside the prototype."""
