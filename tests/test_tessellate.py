@@ -157,3 +157,19 @@ def test_a_field_of_small_spheres_is_as_close_to_a_finer_tessellation_as_the_ful
     assert n_ref == 4 * n_full and n_lod < 0.4 * n_full
     assert rmse(full, ref) > 1e-4   # the oracle differs
     assert rmse(lod, ref) <= 1.15 * rmse(full, ref)
+
+
+def test_non_finite_placements_take_the_full_level_without_lapack_failing():
+    """NaN placements made NumPy's SVD raise LinAlgError, inf ones made LAPACK print to stderr:
+    those matrices are left out of it, and their spheres take the full level (the scene's own
+    check then names the prim)."""
+    proj = Projection(False, (-0.6, -0.45, 0.6, 0.45), 0.1, 100.0, 320, 240)
+    inf_scale = _placed((0, 0, -10))
+    inf_scale[0, 0] = np.inf
+    ms = np.stack([_placed((0, 0, -10)), np.full((4, 4), np.nan), inf_scale,
+                   _placed((0, 0, -1e300)), _placed((0, 0, -10), (1e300, 1e300, 1e300)), _placed((0, 0, -10), (0, 0, 0))])
+    r = T.sphere_radius_px(proj, ms, 1.0)
+    assert np.isfinite(r[0]) and np.isinf(r[1:3]).all() and np.isinf(r[4]) and r[5] == 0.0
+    assert 0.0 <= r[3] < 1e-290
+    assert list(T.sphere_levels(r)) == [3, 3, 3, 0, 3, 0]
+    assert T.sphere_radius_px(proj, np.zeros((0, 4, 4)), 1.0).shape == (0,)

@@ -86,19 +86,23 @@ def sphere_radius_px(proj, local_to_cam: np.ndarray, radius: float) -> np.ndarra
     and widened by how far off the view axis it sits (a sphere off axis projects to an ellipse
     longer across it). inf where the sphere reaches the near plane or behind the eye."""
     m = np.asarray(local_to_cam, np.float64).reshape(-1, 4, 4)
-    stretch = np.linalg.norm(m[:, :3, :3], ord=2, axis=(1, 2)) if len(m) else np.zeros(0)
-    r = abs(float(radius)) * stretch
-    centre = m[:, 3, :3]
+    finite = np.isfinite(m).all(axis=(1, 2))
+    stretch = np.full(len(m), np.inf)
+    if finite.any():   # (LAPACK's SVD fails on NaN and complains of inf)
+        stretch[finite] = np.linalg.norm(m[finite, :3, :3], ord=2, axis=(1, 2))
     x0, y0, x1, y1 = proj.window
-    px_per_unit = max(proj.width / abs(x1 - x0), proj.height / abs(y1 - y0))
-    if proj.orthographic:
-        out = r * px_per_unit
-    else:
-        depth = -centre[:, 2]
-        near = depth - r
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            out = r * px_per_unit / near * (np.linalg.norm(centre, axis=1) / depth)
-        out[~(near > max(proj.near, 0.0))] = np.inf
+    with np.errstate(all="ignore"):
+        r = abs(float(radius)) * stretch
+        centre = m[:, 3, :3]
+        px_per_unit = max(proj.width / abs(x1 - x0), proj.height / abs(y1 - y0))
+        if proj.orthographic:
+            out = r * px_per_unit
+        else:
+            depth = -centre[:, 2]
+            near = depth - r
+            off_axis = np.sqrt(1.0 + (centre[:, 0] / depth) ** 2 + (centre[:, 1] / depth) ** 2)   # |c| / depth
+            out = r * px_per_unit / near * off_axis
+            out[~(near > max(proj.near, 0.0))] = np.inf
     out[~np.isfinite(out)] = np.inf
     return out
 
