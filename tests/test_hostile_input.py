@@ -457,3 +457,30 @@ def test_a_cube_of_size_minus_1e300_under_a_light_renders(tmp_path, method):
     path = _rotation_variant(tmp_path, "double size = 1.4", "double size = -1e300")
     r = wb.render(path, frame=1, method=method, resolution=(32, 24), samples=2, shadow_map_size=64)
     assert np.isfinite(r.rgba).all()
+
+
+@pytest.mark.parametrize("method", ["analytic", "stochastic", "accumulation", "velocity"])
+@pytest.mark.parametrize("where", ["always", "at the shutter's close"])
+def test_skip_invalid_drops_a_prim_whose_transform_is_not_finite(tmp_path, method, where):
+    """The error for a prim whose transformed points are not finite says --skip-invalid drops it,
+    and it now does (before, the check ran at each snapshot and raised whatever the flag): one
+    warning naming the prim, the rest of the stage rendered, every pixel finite. The box's
+    translate is NaN at every time, or from its time sample 1.5 on (frame 2's shutter opens at
+    1.5: the box is there at the open instant, and dropped from the first snapshot that meets a
+    NaN on, as a prim made invisible then)."""
+    old = "double3 xformOp:translate = (2.2, -0.3, 0)"
+    new = ("double3 xformOp:translate = (nan, -0.3, 0)" if where == "always" else
+           "double3 xformOp:translate.timeSamples = { 1.5: (2.2, -0.3, 0), 2.5: (nan, -0.3, 0) }")
+    path = _rotation_variant(tmp_path, old, new)
+    out = str(tmp_path / "out.exr")
+    frame = "2"
+    code, err = _cli("render", path, "-o", out, "--method", method, "--resolution", "32x24", "--frames", frame)
+    assert code == 2 and not os.path.exists(out)
+    assert "invalid geometry on /World/Box: non-finite transformed points" in err[-1] and "--skip-invalid" in err[-1]
+    log.reset()
+    code, err = _cli("render", path, "-o", out, "--method", method, "--resolution", "32x24", "--frames", frame,
+                     "--skip-invalid")
+    warned = [ln for ln in err if "WARNING" in ln and "dropping /World/Box" in ln]
+    assert code == 0 and os.path.exists(out) and len(warned) == 1, err
+    r = wb.render(path, frame=float(frame), method=method, resolution=(32, 24), samples=4, skip_invalid=True)
+    assert np.isfinite(r.rgba).all() and r.rgba[..., 3].max() > 0   # the propeller is there

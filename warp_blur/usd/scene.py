@@ -81,6 +81,7 @@ class Scene:
         self._cam_memo: tuple[bytes, np.ndarray] | None = None   # (camera-to-world bytes, its inverse)
         self._skins = Skins()
         self._groups: list | None = None          # _small_unit_groups, found on first use
+        self._dropped: set[int] = set()           # units dropped as invalid at a snapshot (skip_invalid)
         self._unit_grouped = np.zeros(0, bool)
         self._collect()
         self.light_prims, dome = find_lights(stage)
@@ -481,10 +482,8 @@ class Scene:
             o = self.unit_vertex_offsets[ui]
             positions[o:o + u.num_points * u.num_instances] = p.reshape(-1, 3)
             unit_visible[ui] = u.visible_at(t_prim)
-        if not np.isfinite(positions).all():
-            bad = next(u.path for ui, u in enumerate(self.units)
-                       if not np.isfinite(positions[self.unit_vertex_offsets[ui]:self.unit_vertex_offsets[ui] + u.num_points * u.num_instances]).all())
-            raise InvalidGeometryError(bad, f"non-finite transformed points at time {time}")
+        if self._dropped or not np.isfinite(positions).all():
+            self._drop_non_finite(positions, unit_visible, time)
         normals = (self.shading_normals(positions, time) if self.any_smooth and with_normals
                    else np.zeros((0, 3), np.float32))
         if self.headlight:
@@ -494,6 +493,20 @@ class Scene:
         return Snapshot(time=time, positions=positions, normals=normals,
                         tri_visible=unit_visible[self.tri_unit] if len(self.units) else np.zeros(0, bool),
                         lights=lights, cam_from_world=cam_from_world)
+
+
+    def _drop_non_finite(self, positions: np.ndarray, unit_visible: np.ndarray, time: float) -> None:
+        """Units whose transformed points are not finite at `time`: an InvalidGeometryError naming
+        the first, or with skip_invalid each dropped with a warning, from this snapshot on (hidden,
+        its points set to the eye: finite), like a prim made invisible at that time."""
+        for ui, u in enumerate(self.units):
+            rows = slice(self.unit_vertex_offsets[ui], self.unit_vertex_offsets[ui] + u.num_points * u.num_instances)
+            if ui not in self._dropped and not np.isfinite(positions[rows]).all():
+                if self._invalid(u.path, f"non-finite transformed points at time {time}"):
+                    self._dropped.add(ui)
+            if ui in self._dropped:
+                positions[rows] = 0.0
+                unit_visible[ui] = False
 
 
 def _is_light(prim: Usd.Prim) -> bool:
