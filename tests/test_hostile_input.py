@@ -427,9 +427,9 @@ def test_a_frame_whose_motion_entries_would_not_fit_is_refused_once_they_are_pla
     assert again.stats["entries"] == entries
 
 
-def _rotation_variant(tmp_path, old: str, new: str) -> str:
-    """usd_scenes/rotation.usda with one line's text replaced (a hand-made hostile stage)."""
-    text = open(os.path.join(os.path.dirname(__file__), "..", "usd_scenes", "rotation.usda")).read()
+def _rotation_variant(tmp_path, old: str, new: str, scene: str = "rotation") -> str:
+    """usd_scenes/rotation.usda (or `scene`) with one line's text replaced (a hand-made hostile stage)."""
+    text = open(os.path.join(os.path.dirname(__file__), "..", "usd_scenes", f"{scene}.usda")).read()
     assert old in text
     path = str(tmp_path / "variant.usda")
     with open(path, "w") as f:
@@ -484,3 +484,33 @@ def test_skip_invalid_drops_a_prim_whose_transform_is_not_finite(tmp_path, metho
     assert code == 0 and os.path.exists(out) and len(warned) == 1, err
     r = wb.render(path, frame=float(frame), method=method, resolution=(32, 24), samples=4, skip_invalid=True)
     assert np.isfinite(r.rgba).all() and r.rgba[..., 3].max() > 0   # the propeller is there
+
+
+@pytest.mark.parametrize("method", ["analytic", "stochastic", "accumulation", "velocity"])
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")   # NumPy's overflow notes on 1e300 (the CLI hides them)
+def test_a_prim_at_1e300_under_a_shadowing_light_renders(tmp_path, method):
+    """A box translated to y = 1e300 under a sun and a rect lamp with shadows (found by the fuzzer, seed 5707, on
+    the shadows stage; it fails the same way at the session's start): the sun's map was fitted
+    around it, so its window and depths were inf in float32 and every lookup NaN (a frame of
+    non-finite pixels, nothing written), or, in accumulation, a light left with no faces broke a
+    reshape. Points beyond shadows.maps.FIT_LIMIT are left out of the fit: the rest of the stage
+    renders with its shadows, the far box casts none."""
+    path = _rotation_variant(tmp_path, "double3 xformOp:translate = (1.5, 1.6, -2)",
+                             "double3 xformOp:translate = (1.5, 1e300, -2)", scene="shadows")
+    r = wb.render(path, frame=1, method=method, resolution=(32, 24), samples=4, shadow_map_size=64)
+    assert np.isfinite(r.rgba).all() and r.rgba[..., 3].max() > 0
+    assert r.stats["shadow_lights"] == 2
+
+
+def test_a_light_with_no_faces_takes_no_face_slot():
+    """slot_faces reshaped a light's face rows with -1 for their width, which has no size when the
+    light has no faces (no geometry in any of its cube's faces): an explicit width now."""
+    from types import SimpleNamespace
+
+    from warp_blur.kernels.shadow_lookup import FACE_WIDTH
+    from warp_blur.raster.device_data import slot_faces
+    rows = np.arange(2 * 3 * FACE_WIDTH, dtype=np.float32).reshape(6, FACE_WIDTH)   # light 1: 1 sample, 3 faces, 2 instants
+    data = SimpleNamespace(times=2, size=8, faces=rows, lights=np.array([[0, 1, 0], [0, 1, 3]]))
+    faces, lights = slot_faces(data)
+    assert faces.shape == (3, FACE_WIDTH) and lights[0, 0] == 0 and lights[1, 0] == 0
+    np.testing.assert_array_equal(faces, rows[:3])

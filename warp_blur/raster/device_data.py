@@ -321,7 +321,8 @@ def slot_faces(data) -> tuple[np.ndarray, np.ndarray]:
     for j, (first, m, f) in enumerate(data.lights):
         if first < 0:
             continue
-        faces[k:k + m * f] = data.faces[first:first + m * b * f].reshape(m, b, f, -1)[:, 0].reshape(m * f, -1)
+        width = data.faces.shape[1]   # (explicit: a light may have no faces, and -1 then has no size)
+        faces[k:k + m * f] = data.faces[first:first + m * b * f].reshape(m, b, f, width)[:, 0].reshape(m * f, width)
         lights[j, 0] = k
         k += m * f
     return faces, lights

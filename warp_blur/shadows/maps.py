@@ -45,6 +45,10 @@ from .warped import KeyWarping
 WARP_SECONDS_PER_TEXEL = 3.5e-7
 #: shutter times at which closed instances' volume signs must agree for their back faces to be culled
 SIGN_PROBES = (0.0, 0.5, 1.0)
+#: light-local coordinates (scene units) beyond which a point is left out of its light's map fit:
+#: float32 cannot hold the fitted windows and depths (a prim at 1e300 made them inf, and every
+#: lookup NaN), and one such prim would stretch a map over all the rest anyway
+FIT_LIMIT = 1.0e18
 #: a key map (depth, triangle and barycentrics gathered per texel) costs this many direct maps
 KEY_MAP_COST = 1.75
 
@@ -148,6 +152,7 @@ class ShadowMaps(KeyWarping):
             kind = int(row[0])
             locs = [self._local(j, s) for s in probes]
             allp = np.concatenate(locs)
+            allp = allp[(np.abs(allp) <= FIT_LIMIT).all(axis=1)]   # (NaN fails too)
             if len(allp) == 0:
                 continue
             towards = allp.mean(axis=0)
@@ -157,8 +162,9 @@ class ShadowMaps(KeyWarping):
             pts = np.concatenate([allp - off for off in offsets]) if len(offsets) > 1 else allp
             faces = fit_faces(kind, pts, self.size)
             extent = float(np.abs(allp).max()) + 1.0
-            static = all(a.shape == locs[0].shape and np.abs(a - locs[0]).max(initial=0.0) <= 1e-9 * extent
-                         for a in locs[1:])
+            with np.errstate(invalid="ignore"):   # (inf - inf far beyond the fit: not static)
+                static = all(a.shape == locs[0].shape and np.abs(a - locs[0]).max(initial=0.0) <= 1e-9 * extent
+                             for a in locs[1:])
             static &= all(np.array_equal(s.tri_visible, probes[0].tri_visible) for s in probes[1:])
             self.layouts.append(LightLayout(j, kind, offsets, faces, static))
         self._plan_casters(probes[1])
