@@ -200,3 +200,33 @@ def orbit(radius: float, turns: float, frames: Sequence[float], height: float = 
         a = phase + 2 * math.pi * turns * k / max(n, 1)
         out[f] = (radius * math.cos(a), height, radius * math.sin(a))
     return out
+
+
+def sphere_field(path: str, spheres: int) -> str:
+    """`spheres` spheres of radius 0.3 scattered 2-110 units in front of a wide camera, at heights
+    0.3-3 over a ground, half of them drifting (a random velocity, 10 position samples), a sun
+    with shadows and a dome (tests/test_tessellate.py and bench/bench_particles.py)."""
+    import numpy as np
+    stage = new_stage(path, end=10)
+    add_camera(stage, translate=(0, 4, 12), shutter=(-0.25, 0.25), focal=18.0)
+    add_dome(stage)
+    add_distant_light(stage, "/World/Sun", intensity=2.5)
+    ground = UsdGeom.Mesh.Define(stage, "/World/Ground")
+    ground.CreatePointsAttr([(-60, 0, -120), (60, 0, -120), (60, 0, 20), (-60, 0, 20)])
+    ground.CreateFaceVertexCountsAttr([4])
+    ground.CreateFaceVertexIndicesAttr([0, 3, 2, 1])
+    field = UsdGeom.PointInstancer.Define(stage, "/World/Field")
+    ball = UsdGeom.Sphere.Define(stage, "/World/Field/Protos/Ball")
+    ball.CreateRadiusAttr(0.3)
+    UsdShade.MaterialBindingAPI.Apply(ball.GetPrim()).Bind(
+        add_material(stage, "/World/Looks/Ball", diffuse=(0.8, 0.3, 0.2)))
+    field.CreatePrototypesRel().SetTargets([ball.GetPath()])
+    rng = np.random.default_rng(1)
+    z = 8.0 - rng.uniform(0, 110, spheres)
+    pos = np.c_[rng.uniform(-1, 1, spheres) * (8 - z) * 0.5, rng.uniform(0.3, 3.0, spheres), z]
+    vel = np.where(rng.random((spheres, 1)) < 0.5, rng.normal(0, 1.5, (spheres, 3)), 0.0)
+    for f in range(0, 11):
+        field.GetPositionsAttr().Set(Vt.Vec3fArray.FromNumpy((pos + vel * f).astype(np.float32)), float(f))
+    field.CreateProtoIndicesAttr(Vt.IntArray.FromNumpy(np.zeros(spheres, np.int32)))
+    stage.GetRootLayer().Save()
+    return path

@@ -528,13 +528,13 @@ def test_spheres_small_on_screen_take_fewer_triangles(scene_path):
     scene = Scene(stage, cam, 1.0, Shutter(0.5, 1.5), proj=proj)
     # on-axis radius in pixels: r f / (d - r), f = 320 px across a 24 mm aperture at 24 mm focal length
     expect = sphere_levels(np.array([0.5 * 320 / (d - 0.5) for d in distances]))
-    assert list(expect) == [3, 3, 1, 0]
+    assert list(expect) == [3, 3, 2, 0]
     tris = {1: 80, 0: 20, 2: 320, 3: 1280}
     by_name = {u.path: u for u in scene.units}
     inst_units = [u for name, u in by_name.items() if name.startswith("/World/Inst")]
     assert sorted(u.num_instances for u in inst_units) == [1, 1, 2]
     assert {name for name in by_name if name.startswith("/World/Inst")} == {
-        "/World/Inst (prototype Ball)", "/World/Inst (prototype Ball) level 1", "/World/Inst (prototype Ball) level 0"}
+        "/World/Inst (prototype Ball)", "/World/Inst (prototype Ball) level 2", "/World/Inst (prototype Ball) level 0"}
     assert sum(len(u.local_tris) * u.num_instances for u in inst_units) == sum(tris[int(k)] for k in expect)
     assert [len(by_name[f"/World/S{i}"].local_tris) for i in range(4)] == [tris[int(k)] for k in expect]
     # the instances' positions are where USD puts them, whatever unit holds them

@@ -61,7 +61,7 @@ def _axis_rotation(axis: str) -> np.ndarray:
 SPHERE_LEVEL_MAX = 3
 #: how far (pixels) a sphere's facets may fall inside its true surface on screen: spheres small on
 #: screen take the fewest subdivisions that keep to it (sphere_levels)
-SPHERE_SAG_PX = 0.05
+SPHERE_SAG_PX = 0.025
 #: the deepest a unit-radius icosphere's facets fall inside the sphere, per subdivision level
 #: (trimesh's icospheres: tests/test_tessellate.py measures them)
 ICOSPHERE_SAG = (0.20535, 0.065828, 0.017753, 0.0045284)
