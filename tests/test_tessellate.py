@@ -129,8 +129,8 @@ def test_a_field_of_small_spheres_is_as_close_to_a_finer_tessellation_as_the_ful
         T._trimesh_shape.cache_clear()
         return _box_filtered(r.rgba), r.stats["triangles"]
 
-    ref, n_ref = render(lambda r: np.full(np.shape(r), 4), 4)
-    full, n_full = render(lambda r: np.full(np.shape(r), 3), 3)
+    ref, n_ref = render(lambda r, *_: np.full(np.shape(r), 4), 4)
+    full, n_full = render(lambda r, *_: np.full(np.shape(r), 3), 3)
     lod, n_lod = render(T.sphere_levels, 3)
     other = n_full - 300 * 1280   # the ground's
     assert n_ref == 300 * 5120 + other and n_lod < 0.5 * n_full
@@ -152,3 +152,28 @@ def test_non_finite_placements_take_the_full_level_without_lapack_failing():
     assert 0.0 <= r[3] < 1e-290
     assert list(T.sphere_levels(r)) == [3, 3, 3, 0, 3, 0]
     assert T.sphere_radius_px(proj, np.zeros((0, 4, 4)), 1.0).shape == (0,)
+
+
+def test_the_quality_presets_trade_sphere_triangles_for_accuracy(scene_path):
+    """sphere_error_px: explicit value > quality preset > 0.025 px; a looser bound takes fewer
+    triangles on a field of spheres (a Scene built as a frame's is), and a bound that is not a
+    positive number is a settings error."""
+    import warp_blur as wb
+    from authoring import sphere_field
+    from warp_blur.core.errors import SettingsError
+    from warp_blur.usd.scene import Scene
+    from warp_blur.usd.stage import Shutter, choose_camera, open_stage, projection_at
+    S = wb.RenderSettings
+    assert S(method="analytic").resolved_sphere_error_px == T.SPHERE_SAG_PX == 0.025
+    assert [S(method="analytic", quality=q).resolved_sphere_error_px for q in ("draft", "preview", "final")] == \
+        [0.1, 0.05, 0.0125]
+    assert S(method="velocity", quality="draft", sphere_error_px=0.3).resolved_sphere_error_px == 0.3
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(SettingsError, match="sphere_error_px"):
+            S(method="analytic", sphere_error_px=bad)
+    stage = open_stage(sphere_field(scene_path(), 300))
+    cam = choose_camera(stage, None)
+    proj = projection_at(cam, 5.0, (320, 240))
+    counts = [Scene(stage, cam, 5.0, Shutter(4.75, 5.25), proj=proj, sphere_error_px=e).num_triangles
+              for e in (0.1, 0.05, 0.025, 0.0125)]
+    assert counts[0] < counts[1] < counts[2] < counts[3] <= 300 * 1280 + 2

@@ -146,7 +146,8 @@ class Renderer:
         t0 = time.perf_counter()
         progress.stage("load")
         scene = Scene(self.stage, self.camera, frame, shutter, skip_invalid=s.skip_invalid, proj=proj,
-                      materials=self.materials.table_for(frame), kept_units=self.units)
+                      materials=self.materials.table_for(frame), kept_units=self.units,
+                      sphere_error_px=s.resolved_sphere_error_px)
         if not scene.units:
             raise StageError(f"the stage {self.scene_path} has no renderable geometry "
                              f"(meshes, implicit gprims or point instancers)")

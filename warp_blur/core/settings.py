@@ -39,6 +39,11 @@ SHADOW_PRESETS = {"draft": {"shadow_map_size": 256, "light_samples": 1},
                   "preview": {"shadow_map_size": 512, "light_samples": 4},
                   "final": {"shadow_map_size": 1024, "light_samples": 9}}
 DEFAULT_SHADOW_MAP_SIZE = 512
+#: How far (pixels) an implicit sphere's facets may fall inside its silhouette (its icosphere level
+#: follows its size on screen, usd/tessellate.sphere_levels), by quality; the default is accurate
+#: against a finer tessellation (bench/bench_particles.py).
+SPHERE_ERROR_PRESETS = {"draft": 0.1, "preview": 0.05, "final": 0.0125}
+DEFAULT_SPHERE_ERROR_PX = 0.025
 DEFAULT_LIGHT_SAMPLES = 1
 SHADOW_MODES = ("auto", "warped", "direct", "off")
 
@@ -64,6 +69,9 @@ class RenderSettings:
         segment_time_error: max linearisation error relative to a vertex's screen path (≈ the
             error in the time an edge covers a pixel, as a share of the shutter); None = preset
             or 0.001.
+        sphere_error_px: how far (pixels) an implicit sphere's facets may fall inside its silhouette:
+            its icosphere level (20-1280 triangles) follows its size on screen; None = preset
+            (draft 0.1, preview 0.05, final 0.0125) or 0.025.
         max_segments: upper bound of motion segments per prim (power of two).
         memory_budget_mb: analytic interval arrays above this render in pixel bands; accumulation
             records still pixels' hits only within it (else renders them at every instant).
@@ -104,6 +112,7 @@ class RenderSettings:
     skip_invalid: bool = False
     segment_error_px: float | None = None
     segment_time_error: float | None = None
+    sphere_error_px: float | None = None
     max_segments: int = 128
     memory_budget_mb: float = 2048.0
     frame_memory_limit_mb: float | None = None
@@ -141,7 +150,7 @@ class RenderSettings:
             raise SettingsError(f"spatial samples must be between 1 and 16, got {self.spatial_samples}")
         if self.frame_memory_limit_mb is not None and not self.frame_memory_limit_mb > 0:
             raise SettingsError(f"memory limit must be a positive number of MiB, got {self.frame_memory_limit_mb}")
-        for name in ("segment_error_px", "segment_time_error"):
+        for name in ("segment_error_px", "segment_time_error", "sphere_error_px"):
             value = getattr(self, name)
             if value is not None and not value > 0:
                 raise SettingsError(f"{name} must be a positive number, got {value}")
@@ -205,6 +214,13 @@ class RenderSettings:
         return preset if preset is not None else DEFAULT_SEGMENT_TIME_ERROR
 
     @property
+    def resolved_sphere_error_px(self) -> float:
+        """Sphere facet error after explicit value > quality preset > 0.025 px."""
+        if self.sphere_error_px is not None:
+            return self.sphere_error_px
+        return SPHERE_ERROR_PRESETS[self.quality] if self.quality else DEFAULT_SPHERE_ERROR_PX
+
+    @property
     def resolved_shadow_map_size(self) -> int:
         if self.shadow_map_size is not None:
             return self.shadow_map_size
@@ -232,7 +248,7 @@ class RenderSettings:
         d = {"method": self.method, "samples": self.resolved_samples,
              "spatial_samples": self.spatial_samples, "shutter": self.shutter,
              "segment_error_px": self.segment_error_px, "segment_time_error": self.segment_time_error,
-             "max_segments": self.max_segments, "shadows": self.resolved_shadows}
+             "sphere_error_px": self.resolved_sphere_error_px, "max_segments": self.max_segments, "shadows": self.resolved_shadows}
         if self.resolved_shadows != "off":
             d.update(shadow_map_size=self.resolved_shadow_map_size, shadow_grid=self.shadow_grid,
                      shadow_times=self.shadow_times, shadow_keys=self.shadow_keys,

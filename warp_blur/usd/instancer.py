@@ -107,7 +107,7 @@ def _instance_sphere_levels(scene, sub: Usd.Prim, root: Usd.Prim, instancer: Usd
     to_cam = _prototype_to_instancer(cache, sub, root, instancer, all_transforms(scene.frame)[sel]) \
         @ scene.cam_from_world(scene.frame)[None]
     radius = gprim_number(UsdGeom.Sphere(sub).GetRadiusAttr(), Usd.TimeCode(scene.frame))
-    levels = sphere_levels(sphere_radius_px(scene.proj, to_cam, radius))
+    levels = sphere_levels(sphere_radius_px(scene.proj, to_cam, radius), scene.sphere_error_px)
     return [(int(level), sel[levels == level]) for level in np.unique(levels)]
 
 

@@ -63,9 +63,10 @@ class Scene:
 
     def __init__(self, stage: Usd.Stage, camera: UsdGeom.Camera, frame: float, shutter: Shutter,
                  skip_invalid: bool = False, proj=None, materials: MaterialTable | None = None,
-                 kept_units=None) -> None:
+                 kept_units=None, sphere_error_px: float | None = None) -> None:
         self.stage = stage
         self.proj = proj   # the image's Projection when known: subdivision levels follow screen size
+        self.sphere_error_px = sphere_error_px   # spheres' facet error on screen (tessellate.sphere_levels)
         self.camera = camera
         self.frame = frame
         self.shutter = shutter
@@ -349,7 +350,7 @@ class Scene:
                 to_cam = np.array(self._xf_cache(self.frame).GetLocalToWorldTransform(prim)) \
                     @ self.cam_from_world(self.frame)
                 radius = gprim_number(UsdGeom.Sphere(prim).GetRadiusAttr(), Usd.TimeCode(self.frame))
-                level = int(sphere_levels(sphere_radius_px(self.proj, to_cam[None], radius))[0])
+                level = int(sphere_levels(sphere_radius_px(self.proj, to_cam[None], radius), self.sphere_error_px)[0])
             self._levels[path] = level
         return self._levels[path]
 

@@ -8,6 +8,7 @@ import numpy as np
 from pxr import Usd, UsdGeom
 
 from ..core.log import warn_once
+from ..core.settings import DEFAULT_SPHERE_ERROR_PX
 
 
 def triangulate_corners(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray | None = None,
@@ -59,23 +60,25 @@ def _axis_rotation(axis: str) -> np.ndarray:
 
 #: icosphere subdivisions of an implicit sphere that is large on screen (1280 triangles)
 SPHERE_LEVEL_MAX = 3
-#: how far (pixels) a sphere's facets may fall inside its true surface on screen: spheres small on
-#: screen take the fewest subdivisions that keep to it (sphere_levels)
-SPHERE_SAG_PX = 0.025
+#: how far (pixels) a sphere's facets may fall inside its true surface on screen by default
+#: (RenderSettings.sphere_error_px and its presets): spheres small on screen take the fewest
+#: subdivisions that keep to it (sphere_levels)
+SPHERE_SAG_PX = DEFAULT_SPHERE_ERROR_PX
 #: the deepest a unit-radius icosphere's facets fall inside the sphere, per subdivision level
 #: (trimesh's icospheres: tests/test_tessellate.py measures them)
 ICOSPHERE_SAG = (0.20535, 0.065828, 0.017753, 0.0045284)
 
 
-def sphere_levels(radius_px: np.ndarray) -> np.ndarray:
+def sphere_levels(radius_px: np.ndarray, error_px: float | None = None) -> np.ndarray:
     """(N,) int icosphere subdivisions (0 .. SPHERE_LEVEL_MAX) for spheres whose radii on screen
     are radius_px (N,) pixels (inf: unknown or at the eye): the fewest whose facets fall at most
-    SPHERE_SAG_PX inside the silhouette, and never more than SPHERE_LEVEL_MAX (the level every
-    sphere had before: large spheres are tessellated as they were)."""
+    error_px (None: SPHERE_SAG_PX) inside the silhouette, and never more than SPHERE_LEVEL_MAX
+    (the level every sphere had before: large spheres are tessellated as they were)."""
+    bound = SPHERE_SAG_PX if error_px is None else float(error_px)
     r = np.asarray(radius_px, np.float64)
     level = np.full(r.shape, SPHERE_LEVEL_MAX, np.int64)
     for s in range(SPHERE_LEVEL_MAX - 1, -1, -1):
-        level[ICOSPHERE_SAG[s] * r <= SPHERE_SAG_PX] = s
+        level[ICOSPHERE_SAG[s] * r <= bound] = s
     return level
 
 
