@@ -39,13 +39,13 @@ SHADOW_PRESETS = {"draft": {"shadow_map_size": 256, "light_samples": 1},
                   "preview": {"shadow_map_size": 512, "light_samples": 4},
                   "final": {"shadow_map_size": 1024, "light_samples": 9}}
 DEFAULT_SHADOW_MAP_SIZE = 512
+DEFAULT_LIGHT_SAMPLES = 1
+SHADOW_MODES = ("auto", "warped", "direct", "off")
 #: How far (pixels) an implicit sphere's facets may fall inside its silhouette (its icosphere level
 #: follows its size on screen, usd/tessellate.sphere_levels), by quality; the default is accurate
 #: against a finer tessellation (bench/bench_particles.py).
 SPHERE_ERROR_PRESETS = {"draft": 0.1, "preview": 0.05, "final": 0.0125}
 DEFAULT_SPHERE_ERROR_PX = 0.025
-DEFAULT_LIGHT_SAMPLES = 1
-SHADOW_MODES = ("auto", "warped", "direct", "off")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -248,7 +248,8 @@ class RenderSettings:
         d = {"method": self.method, "samples": self.resolved_samples,
              "spatial_samples": self.spatial_samples, "shutter": self.shutter,
              "segment_error_px": self.segment_error_px, "segment_time_error": self.segment_time_error,
-             "sphere_error_px": self.resolved_sphere_error_px, "max_segments": self.max_segments, "shadows": self.resolved_shadows}
+             "sphere_error_px": self.resolved_sphere_error_px, "max_segments": self.max_segments,
+             "shadows": self.resolved_shadows}
         if self.resolved_shadows != "off":
             d.update(shadow_map_size=self.resolved_shadow_map_size, shadow_grid=self.shadow_grid,
                      shadow_times=self.shadow_times, shadow_keys=self.shadow_keys,
