@@ -490,11 +490,11 @@ def test_skip_invalid_drops_a_prim_whose_transform_is_not_finite(tmp_path, metho
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")   # NumPy's overflow notes on 1e300 (the CLI hides them)
 def test_a_prim_at_1e300_under_a_shadowing_light_renders(tmp_path, method):
     """A box translated to y = 1e300 under a sun and a rect lamp with shadows (found by the fuzzer, seed 5707, on
-    the shadows stage; it fails the same way at the session's start): the sun's map was fitted
-    around it, so its window and depths were inf in float32 and every lookup NaN (a frame of
-    non-finite pixels, nothing written), or, in accumulation, a light left with no faces broke a
-    reshape. Points beyond shadows.maps.FIT_LIMIT are left out of the fit: the rest of the stage
-    renders with its shadows, the far box casts none."""
+    the shadows stage; it fails the same way at the session's start): a light left with no faces
+    broke a reshape (every method), and with that mended, the maps fitted around the box had inf
+    windows and near planes in float32 and every lookup was NaN (a frame of non-finite pixels,
+    nothing written). Points beyond shadows.maps.FIT_LIMIT are left out of the fit: the rest of
+    the stage renders with its shadows, the far box casts none."""
     path = _rotation_variant(tmp_path, "double3 xformOp:translate = (1.5, 1.6, -2)",
                              "double3 xformOp:translate = (1.5, 1e300, -2)", scene="shadows")
     r = wb.render(path, frame=1, method=method, resolution=(32, 24), samples=4, shadow_map_size=64)
