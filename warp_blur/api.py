@@ -28,7 +28,7 @@ from .methods import KERNEL_MODULES, get_method
 from .core.preload import preload_modules
 from .usd.material_cache import MaterialCache
 from .usd.unit_cache import UnitCache
-from .usd.scene import Scene
+from .usd.scene import Scene, UnitsDroppedMidFrame
 from .core.settings import RenderSettings
 from .usd.stage import (choose_camera, choose_resolution, conform_policy, open_stage, projection_at,
                     shutter_for_frame)
@@ -151,31 +151,18 @@ class Renderer:
         if not scene.units:
             raise StageError(f"the stage {self.scene_path} has no renderable geometry "
                              f"(meshes, implicit gprims or point instancers)")
-        ctx = FrameContext(scene=scene, proj=proj, shutter=shutter, settings=s, device=device)
-        ctx.timings["load"] = time.perf_counter() - t0
+        load_s = time.perf_counter() - t0
         h, w = proj.height, proj.width
-        if not shutter.exposed:
-            rgba = np.zeros((h, w, 4), np.float32)
-        else:
-            # the method's kernel modules built side by side (once a process; quick from the cache)
-            preload_modules(KERNEL_MODULES[s.method], device, s.threads)
-            static = ctx.static_frame()
-            if static is not None:  # nothing moves: every method's answer is the one sharp image
-                rgba = ctx.render_static(static).reshape(h, w, 4).astype(np.float32)
-            else:
-                rgba = get_method(s.method)(ctx).reshape(h, w, 4).astype(np.float32)
-        aovs: dict[str, np.ndarray] = {}
-        if shutter.exposed and ("Z" in s.aovs or "motion" in s.aovs):
-            if ctx.aov_motion is not None:  # the velocity method's own buffers (object + camera from depth)
-                depth, motion = ctx.aov_depth, ctx.aov_motion
-            else:
-                depth, motion = ctx.depth_motion()
-            if "Z" in s.aovs:
-                aovs["Z"] = depth.astype(np.float32)
-            if "motion" in s.aovs:
-                aovs["motion"] = motion.astype(np.float32)
-        if "coverage" in s.aovs:
-            aovs["coverage"] = rgba[..., 3].copy()
+        for _attempt in range(len(scene.units) + 1):
+            ctx = FrameContext(scene=scene, proj=proj, shutter=shutter, settings=s, device=device)
+            ctx.timings["load"] = load_s
+            try:
+                rgba, aovs = self._frame_images(ctx)
+                break
+            except UnitsDroppedMidFrame:   # --skip-invalid dropped a prim some snapshot had shown
+                ctx.release()
+        else:   # (each retry drops one unit more: unreachable)
+            raise RuntimeError("frame kept dropping prims")
         ctx.release()   # the frame's buffers go back now, for the next frame to reuse
         total = time.perf_counter() - t_start
         stats = {
@@ -196,6 +183,35 @@ class Renderer:
                                   self.stage.GetFramesPerSecond(), self.scene_path, frame)
         return RenderResult(rgba=rgba, aovs=aovs, stats=stats, metadata=metadata, exr_attributes=exr)
 
+
+    def _frame_images(self, ctx: FrameContext) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """(rgba (H, W, 4) float32, AOVs by name) of the frame ctx holds: the method's image (the
+        one sharp image when nothing moves) and the AOVs asked for."""
+        s, shutter, proj = ctx.settings, ctx.shutter, ctx.proj
+        h, w = proj.height, proj.width
+        if not shutter.exposed:
+            rgba = np.zeros((h, w, 4), np.float32)
+        else:
+            # the method's kernel modules built side by side (once a process; quick from the cache)
+            preload_modules(KERNEL_MODULES[s.method], ctx.device, s.threads)
+            static = ctx.static_frame()
+            if static is not None:  # nothing moves: every method's answer is the one sharp image
+                rgba = ctx.render_static(static).reshape(h, w, 4).astype(np.float32)
+            else:
+                rgba = get_method(s.method)(ctx).reshape(h, w, 4).astype(np.float32)
+        aovs: dict[str, np.ndarray] = {}
+        if shutter.exposed and ("Z" in s.aovs or "motion" in s.aovs):
+            if ctx.aov_motion is not None:  # the velocity method's own buffers (object + camera from depth)
+                depth, motion = ctx.aov_depth, ctx.aov_motion
+            else:
+                depth, motion = ctx.depth_motion()
+            if "Z" in s.aovs:
+                aovs["Z"] = depth.astype(np.float32)
+            if "motion" in s.aovs:
+                aovs["motion"] = motion.astype(np.float32)
+        if "coverage" in s.aovs:
+            aovs["coverage"] = rgba[..., 3].copy()
+        return rgba, aovs
 
 def render(scene: str, frame: float | None = None, method: str = "accumulation",
            resolution: tuple[int, int] | None = None, camera: str | None = None, device: str = "cpu",

@@ -83,6 +83,7 @@ class Scene:
         self._skins = Skins()
         self._groups: list | None = None          # _small_unit_groups, found on first use
         self._dropped: set[int] = set()           # units dropped as invalid at a snapshot (skip_invalid)
+        self._snapshots_taken = 0
         self._unit_grouped = np.zeros(0, bool)
         self._collect()
         self.light_prims, dome = find_lights(stage)
@@ -491,6 +492,7 @@ class Scene:
             lights = headlight_table()
         else:
             lights = light_table(self.light_prims, time, cam_from_world, self._xf_cache(time))
+        self._snapshots_taken += 1
         return Snapshot(time=time, positions=positions, normals=normals,
                         tri_visible=unit_visible[self.tri_unit] if len(self.units) else np.zeros(0, bool),
                         lights=lights, cam_from_world=cam_from_world)
@@ -498,16 +500,27 @@ class Scene:
 
     def _drop_non_finite(self, positions: np.ndarray, unit_visible: np.ndarray, time: float) -> None:
         """Units whose transformed points are not finite at `time`: an InvalidGeometryError naming
-        the first, or with skip_invalid each dropped with a warning, from this snapshot on (hidden,
-        its points set to the eye: finite), like a prim made invisible at that time."""
+        the first, or with skip_invalid each dropped with a warning: hidden at every snapshot (its
+        points set to the eye: finite). A unit first found so after the frame's first snapshot
+        raises UnitsDroppedMidFrame once marked: earlier snapshots showed it, so the frame is to
+        be rendered again (Renderer.render does) with it hidden throughout."""
+        new = False
         for ui, u in enumerate(self.units):
             rows = slice(self.unit_vertex_offsets[ui], self.unit_vertex_offsets[ui] + u.num_points * u.num_instances)
             if ui not in self._dropped and not np.isfinite(positions[rows]).all():
                 if self._invalid(u.path, f"non-finite transformed points at time {time}"):
                     self._dropped.add(ui)
+                    new = True
             if ui in self._dropped:
                 positions[rows] = 0.0
                 unit_visible[ui] = False
+        if new and self._snapshots_taken > 0:
+            raise UnitsDroppedMidFrame()
+
+
+class UnitsDroppedMidFrame(Exception):
+    """Raised by Scene.snapshot when skip_invalid drops a unit that earlier snapshots of the frame
+    showed: the frame is rendered again with the unit hidden at every time (not a user error)."""
 
 
 def _is_light(prim: Usd.Prim) -> bool:
