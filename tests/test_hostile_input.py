@@ -529,3 +529,17 @@ def test_a_light_with_no_faces_takes_no_face_slot():
     faces, lights = slot_faces(data)
     assert faces.shape == (3, FACE_WIDTH) and lights[0, 0] == 0 and lights[1, 0] == 0
     np.testing.assert_array_equal(faces, rows[:3])
+
+
+@pytest.mark.parametrize("fps", ["inf", "25"])   # (USD itself refuses nan, 0 and -24 as it reads the stage)
+def test_a_frame_rate_that_is_not_a_finite_positive_number_is_left_out_of_the_exr(tmp_path, fps):
+    """`framesPerSecond = inf` (found by the fuzzer, seed 5709; fails the same way at 2cbb900):
+    the EXR's framesPerSecond attribute, a rational, raised OverflowError after the frame had
+    rendered (a failed frame). Such a rate is now left out of the file; 25 is written."""
+    path = _rotation_variant(tmp_path, "framesPerSecond = 24", f"framesPerSecond = {fps}")
+    out = str(tmp_path / "out.exr")
+    code, err = _cli("render", path, "-o", out, "--method", "velocity", "--resolution", "32x24", "--frames", "2")
+    assert code == 0 and os.path.exists(out), err
+    import OpenEXR
+    header = OpenEXR.InputFile(out).header()
+    assert ("framesPerSecond" in header) == (fps == "25")

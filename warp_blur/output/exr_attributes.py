@@ -62,7 +62,9 @@ def standard_attributes(proj: Projection, cam_from_world: np.ndarray, frames_per
     """The standard attributes of one frame, typed as the OpenEXR binding writes them."""
     now = datetime.datetime.now().astimezone()
     offset = now.utcoffset()
-    fps = fractions.Fraction(frames_per_second).limit_denominator(1001) if frames_per_second > 0 else None
+    # (a rate that is not a finite positive number, such as a stage's `framesPerSecond = inf`, is left out)
+    fps = (fractions.Fraction(frames_per_second).limit_denominator(1001)
+           if np.isfinite(frames_per_second) and frames_per_second > 0 else None)
     try:
         owner = getpass.getuser()
     except (KeyError, OSError):
