@@ -183,7 +183,6 @@ class Renderer:
                                   self.stage.GetFramesPerSecond(), self.scene_path, frame)
         return RenderResult(rgba=rgba, aovs=aovs, stats=stats, metadata=metadata, exr_attributes=exr)
 
-
     def _frame_images(self, ctx: FrameContext) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """(rgba (H, W, 4) float32, AOVs by name) of the frame ctx holds: the method's image (the
         one sharp image when nothing moves) and the AOVs asked for."""
@@ -212,6 +211,7 @@ class Renderer:
         if "coverage" in s.aovs:
             aovs["coverage"] = rgba[..., 3].copy()
         return rgba, aovs
+
 
 def render(scene: str, frame: float | None = None, method: str = "accumulation",
            resolution: tuple[int, int] | None = None, camera: str | None = None, device: str = "cpu",
