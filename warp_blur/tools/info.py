@@ -9,7 +9,7 @@ from ..core.affine import invert_affine
 from ..usd.lights import DISTANT, DISK, RECT, SPHERE
 from ..usd.framing import is_framing_camera, place_framing_camera
 from ..core.memory import frame_bytes
-from ..usd.scene import Scene
+from ..usd.scene import Scene, UnitsDroppedMidFrame
 from ..core.settings import METHODS
 from ..usd.stage import (choose_camera, choose_resolution, conform_policy, open_stage, projection_at,
                     shutter_for_frame)
@@ -29,8 +29,14 @@ def scene_report(path: str, camera: str | None = None, frame: float | None = Non
         place_framing_camera(stage, cam, frame, res[0] / res[1])
     shutter = shutter_for_frame(stage, cam, frame, None)
     proj = projection_at(cam, frame, res, conform_policy(stage))
-    scene = Scene(stage, cam, frame, shutter, skip_invalid=True)
-    open_s, close_s = scene.snapshot(shutter.open), scene.snapshot(shutter.close)
+    # the projection makes spheres and subdivision meshes take the levels a render at `res` gives them
+    scene = Scene(stage, cam, frame, shutter, skip_invalid=True, proj=proj)
+    for _attempt in range(len(scene.units) + 1):
+        try:
+            open_s, close_s = scene.snapshot(shutter.open), scene.snapshot(shutter.close)
+            break
+        except UnitsDroppedMidFrame:   # invalid only at the close: both again without it
+            continue
     prims = []
     motion = screen_motion(proj, open_s, close_s)
     for ui, u in enumerate(scene.units):
