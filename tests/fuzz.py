@@ -5,7 +5,7 @@ never a traceback, a signal or a hang.
 Used by tests/test_fuzz.py (a few dozen mutants in-process, every CI run) and, as a script, for
 soaks in subprocesses (signals and hangs are seen there):
 
-    python tests/fuzz.py --many 2000 [--seed 1] [--timeout 120] [--start N]
+    python tests/fuzz.py --many 2000 [--seed 1] [--timeout 120] [--start N] [--skip-invalid]
 """
 
 from __future__ import annotations
@@ -78,9 +78,11 @@ def mutants(count: int, seed: int):
         yield i, name, method, data, kind
 
 
-def render_args(scene: str, out: str, method: str) -> list[str]:
+def render_args(scene: str, out: str, method: str, skip_invalid: bool = False) -> list[str]:
+    """The CLI arguments a mutant renders with (with --skip-invalid: invalid prims are dropped,
+    so the renders go past them and through what drops them)."""
     return ["render", scene, "-o", out, "--method", method, "--resolution", "32x24", "--samples", "2",
-            "--shadow-map-size", "64", "--quiet"]
+            "--shadow-map-size", "64", "--quiet"] + (["--skip-invalid"] if skip_invalid else [])
 
 
 def judge(code: int, stderr: str, out: str) -> str:
@@ -107,7 +109,7 @@ def judge(code: int, stderr: str, out: str) -> str:
     return f"exit {code}"
 
 
-def soak(count: int, seed: int, timeout: float, start: int = 0) -> collections.Counter:
+def soak(count: int, seed: int, timeout: float, start: int = 0, skip_invalid: bool = False) -> collections.Counter:
     """Each mutant in its own process (signals and hangs are outcomes too); prints the bad ones.
     Mutants before `start` are generated (the sequence is seeded) but not run: a soak resumes."""
     from tqdm import tqdm
@@ -119,7 +121,7 @@ def soak(count: int, seed: int, timeout: float, start: int = 0) -> collections.C
             with open(scene, "wb") as f:
                 f.write(data)
             try:
-                p = subprocess.run([sys.executable, "-m", "warp_blur", *render_args(scene, out, method)],
+                p = subprocess.run([sys.executable, "-m", "warp_blur", *render_args(scene, out, method, skip_invalid)],
                                    capture_output=True, text=True, timeout=timeout, errors="replace")
                 verdict = judge(p.returncode, p.stderr, out)
             except subprocess.TimeoutExpired:
@@ -140,7 +142,8 @@ if __name__ == "__main__":
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--timeout", type=float, default=120.0, help="seconds before a mutant counts as a hang")
     ap.add_argument("--start", type=int, default=0, help="skip the first mutants of the seeded sequence (resume a soak)")
+    ap.add_argument("--skip-invalid", action="store_true", help="render with --skip-invalid (invalid prims dropped)")
     a = ap.parse_args()
-    result = soak(a.many, a.seed, a.timeout, a.start)
+    result = soak(a.many, a.seed, a.timeout, a.start, a.skip_invalid)
     for verdict, n in result.most_common():
         print(f"{n:6d}  {verdict}")
