@@ -17,6 +17,7 @@ import numpy as np
 from pxr import Usd, UsdGeom
 
 from .points import derived_points_fn, facing_axes
+from .values import array_value, value_count
 
 SAMPLES_PER_SEGMENT = 8
 DEFAULT_WIDTH = 1.0
@@ -138,11 +139,10 @@ def sample_widths(curves: UsdGeom.BasisCurves, time: Usd.TimeCode, layout: Curve
                   num_curves: int) -> np.ndarray | None:
     """(S,) widths at the samples: one for all, one per curve, or per control point (through the
     same weights); USD's default of 1 when unauthored; None when they fit none of these."""
-    widths = curves.GetWidthsAttr().Get(time)
+    w = array_value(curves.GetWidthsAttr(), time, np.float64).reshape(-1)
     s = len(layout.curve_of_sample)
-    if widths is None or len(widths) == 0:
+    if len(w) == 0:
         return np.full(s, DEFAULT_WIDTH)
-    w = np.asarray(widths, np.float64).reshape(-1)
     if not (np.isfinite(w).all() and (w >= 0).all()):
         return None
     if len(w) == 1:
@@ -161,9 +161,8 @@ def curves_unit_fields(scene, prim: Usd.Prim, t: Usd.TimeCode) -> dict | None:
     double-sided)."""
     schema = UsdGeom.BasisCurves(prim)
     path = str(prim.GetPath())
-    raw = schema.GetPointsAttr().Get(t)
-    n = 0 if raw is None else len(raw)
-    counts = np.asarray(schema.GetCurveVertexCountsAttr().Get(t) or [], np.int64)
+    n = value_count(schema.GetPointsAttr(), t)
+    counts = array_value(schema.GetCurveVertexCountsAttr(), t, np.int64)
     if n == 0 or len(counts) == 0:
         return None
     kind = str(schema.GetTypeAttr().Get(t) or "cubic")

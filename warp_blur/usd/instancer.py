@@ -13,6 +13,7 @@ from ..core.affine import invert_affine
 from ..core.log import warn_once
 from .tessellate import SPHERE_LEVEL_MAX, gprim_number, sphere_levels, sphere_radius_px, tessellate_gprim
 from .units import FLAG_SMOOTH, GeomUnit, prototype_unit_name
+from .values import array_value
 
 #: implicit gprims a prototype may hold (tessellate.tessellate_gprim)
 IMPLICIT = (UsdGeom.Cube, UsdGeom.Sphere, UsdGeom.Cylinder, UsdGeom.Cone, UsdGeom.Capsule, UsdGeom.Plane)
@@ -25,7 +26,7 @@ def add_instancer_units(scene, prim: Usd.Prim, t: Usd.TimeCode) -> None:
     inst = UsdGeom.PointInstancer(prim)
     path = str(prim.GetPath())
     protos = inst.GetPrototypesRel().GetForwardedTargets()
-    proto_indices = np.asarray(inst.GetProtoIndicesAttr().Get(t) or [], np.int64)
+    proto_indices = array_value(inst.GetProtoIndicesAttr(), t, np.int64)
     if len(proto_indices) == 0:
         return
     bad = proto_indices[(proto_indices < 0) | (proto_indices >= len(protos))]

@@ -145,12 +145,13 @@ def light_inputs(lp: LightPrim, t: Usd.TimeCode) -> tuple:
         radiance = radiance * distant_illuminance_factor(UsdLux.DistantLight(lp.prim), normalize, t)
     elif lp.kind == SPHERE:
         sl = UsdLux.SphereLight(lp.prim)
-        size = (float(sl.GetRadiusAttr().Get(t) or 0.0), bool(sl.GetTreatAsPointAttr().Get(t)))
+        size = (float(_finite_input(api, sl.GetRadiusAttr(), t, 0.5, 1)[0]), bool(sl.GetTreatAsPointAttr().Get(t)))
     elif lp.kind == RECT:
         rl = UsdLux.RectLight(lp.prim)
-        size = (float(rl.GetWidthAttr().Get(t) or 1.0), float(rl.GetHeightAttr().Get(t) or 1.0))
+        size = (float(_finite_input(api, rl.GetWidthAttr(), t, 1.0, 1)[0]),
+                float(_finite_input(api, rl.GetHeightAttr(), t, 1.0, 1)[0]))
     elif lp.kind == DISK:
-        size = float(UsdLux.DiskLight(lp.prim).GetRadiusAttr().Get(t) or 0.5)
+        size = float(_finite_input(api, UsdLux.DiskLight(lp.prim).GetRadiusAttr(), t, 0.5, 1)[0])
     inputs = (visible, radiance, normalize, shadow, size)
     if "varies" not in lp.held:
         lp.held["varies"] = visibility_varies([lp.prim]) or any(a and a.ValueMightBeTimeVarying()

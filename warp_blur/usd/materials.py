@@ -27,6 +27,7 @@ from pxr import Usd, UsdShade
 
 from ..core.log import warn_once
 from .textures import IDENTITY_ST, TextureSet
+from .values import array_value
 
 MATERIAL_WIDTH = 24
 #: Columns of a material row past the first twelve (see the module docstring).
@@ -367,7 +368,7 @@ class MaterialTable:
             return None
         out = np.full(len(face_of_tri), material, np.int32)
         for subset in subsets:
-            faces = np.asarray(subset.GetIndicesAttr().Get(t) or [], np.int64)
+            faces = array_value(subset.GetIndicesAttr(), t, np.int64)
             if len(faces):
                 out[np.isin(face_of_tri, faces)] = self.index_for_prim(subset.GetPrim())
         return out if (out != material).any() else None

@@ -23,20 +23,28 @@ from pxr import Usd, UsdGeom
 
 from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
 from ..core.log import warn_once
+from .values import array_value, unregistered
 
 HARD_EDGE_COS = 0.999
 
 
 def _source(prim: Usd.Prim):
-    """(value getter time -> array or None, interpolation) of the mesh's authored normals, or None."""
+    """(value getter time -> array or None, interpolation) of the mesh's authored normals, or None
+    (also, with a warning, when they are authored with a type USD does not know)."""
     pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("normals")
-    if pv and pv.HasAuthoredValue():
-        return (lambda time: pv.ComputeFlattened(Usd.TimeCode(time))), pv.GetInterpolation(), pv.GetAttr()
     mesh = UsdGeom.Mesh(prim)
     attr = mesh.GetNormalsAttr()
-    if attr and attr.HasAuthoredValue():
-        return (lambda time: attr.Get(Usd.TimeCode(time))), mesh.GetNormalsInterpolation(), attr
-    return None
+    if pv and pv.HasAuthoredValue():
+        found = (lambda time: pv.ComputeFlattened(Usd.TimeCode(time))), pv.GetInterpolation(), pv.GetAttr()
+    elif attr and attr.HasAuthoredValue():
+        found = (lambda time: attr.Get(Usd.TimeCode(time))), mesh.GetNormalsInterpolation(), attr
+    else:
+        return None
+    if unregistered(found[2].Get(Usd.TimeCode.EarliestTime())):
+        warn_once(f"normals:{prim.GetPath()}", f"{found[2].GetPath()} is authored with a type USD does not know; "
+                                               f"rendering flat facets")
+        return None
+    return found
 
 
 def _per_point(values: np.ndarray, interp: str, indices: np.ndarray, npts: int) -> np.ndarray | None:
@@ -62,7 +70,7 @@ def authored_normals_fn(prim: Usd.Prim, t: Usd.TimeCode, npts: int) -> Callable[
         return None
     get, interp, attr = src
     path = str(prim.GetPath())
-    indices = np.asarray(UsdGeom.Mesh(prim).GetFaceVertexIndicesAttr().Get(t) or [], np.int64)
+    indices = array_value(UsdGeom.Mesh(prim).GetFaceVertexIndicesAttr(), t, np.int64)
 
     def at(time: float) -> np.ndarray | None:
         raw = get(time)
@@ -98,7 +106,7 @@ def split_normals_fn(prim: Usd.Prim, t: Usd.TimeCode, npts: int):
     if src is None or src[1] != UsdGeom.Tokens.faceVarying:
         return None
     get, _, attr = src
-    indices = np.asarray(UsdGeom.Mesh(prim).GetFaceVertexIndicesAttr().Get(t) or [], np.int64)
+    indices = array_value(UsdGeom.Mesh(prim).GetFaceVertexIndicesAttr(), t, np.int64)
     time0 = float(t.GetValue()) if not t.IsDefault() else 0.0
     raw = get(time0)
     values = None if raw is None else np.asarray(raw, np.float64).reshape(-1, 3)

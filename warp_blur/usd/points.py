@@ -12,6 +12,7 @@ import numpy as np
 from pxr import Usd, UsdGeom
 
 from ..core.affine import invert_affine
+from .values import array_value, value_count
 
 
 #: sides of the polygon standing for a disc, and the radius scale that gives it the disc's area
@@ -42,10 +43,9 @@ def disc_vertices(centres: np.ndarray, radii: np.ndarray, right: np.ndarray, up:
 def point_radii(points: UsdGeom.Points, time: Usd.TimeCode, count: int) -> np.ndarray | None:
     """(count,) radii from `widths` (per point, or one for all; USD's default of 1 unauthored),
     or None when the widths do not fit the points or are not finite positive numbers."""
-    widths = points.GetWidthsAttr().Get(time)
-    if widths is None or len(widths) == 0:
+    w = array_value(points.GetWidthsAttr(), time, np.float64).reshape(-1)
+    if len(w) == 0:
         return np.full(count, DEFAULT_WIDTH / 2.0)
-    w = np.asarray(widths, np.float64).reshape(-1)
     if len(w) == 1:
         w = np.full(count, w[0])
     if len(w) != count or not (np.isfinite(w).all() and (w >= 0).all()):
@@ -92,8 +92,7 @@ def points_unit_fields(scene, prim: Usd.Prim, t: Usd.TimeCode) -> dict | None:
     dropped as invalid); `scene` is the usd.scene.Scene being built (it makes them double-sided)."""
     schema = UsdGeom.Points(prim)
     path = str(prim.GetPath())
-    raw = schema.GetPointsAttr().Get(t)
-    n = 0 if raw is None else len(raw)
+    n = value_count(schema.GetPointsAttr(), t)
     if n == 0:
         return None
     radii = point_radii(schema, t, n)

@@ -7,6 +7,7 @@ import numpy as np
 from pxr import Usd, UsdGeom
 
 from ..core.log import warn_once
+from .values import unregistered
 
 
 def corner_primvar(prim: Usd.Prim, name: str, time: Usd.TimeCode, tris: np.ndarray, face_of_tri: np.ndarray,
@@ -19,12 +20,15 @@ def corner_primvar(prim: Usd.Prim, name: str, time: Usd.TimeCode, tris: np.ndarr
     pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(name)
     if not pv or not pv.HasValue():
         return None
+    path = prim.GetPath()
     try:
         raw = pv.ComputeFlattened(time)
         vals = None if raw is None else np.asarray(raw, np.float32).reshape(-1, width)
     except (TypeError, ValueError):
         vals = None
-    path = prim.GetPath()
+        what = ("is authored with a type USD does not know" if unregistered(pv.GetAttr().Get(time))
+                else f"is not {width} numbers a value")
+        warn_once(f"primvar-type:{path}:{name}", f"{path}: primvar {name} {what}; ignored")
     if vals is None or len(vals) == 0:
         return None
     if not np.isfinite(vals).all():

@@ -31,6 +31,7 @@ from .primvars import corner_primvar, grey_corners
 from .tessellate import (SPHERE_LEVEL_MAX, gprim_number, sphere_levels, sphere_radius_px, tessellate_gprim,
                          triangulate_corners)
 from .instancer import IMPLICIT, add_instancer_units
+from .values import UnreadableValue, array_value, value_count
 from .units import (FLAG_DOUBLE_SIDED, FLAG_SMOOTH, GeomUnit, SmallUnitGroup, UnitRows, held_points,
                     prim_transform_fn, small_unit_groups)
 
@@ -125,19 +126,29 @@ class Scene:
                 it.PruneChildren()
                 continue
             if prim.IsA(UsdGeom.PointInstancer):
-                add_instancer_units(self, prim, t)
+                self._read_checked(prim, lambda: add_instancer_units(self, prim, t))
                 it.PruneChildren()
             elif prim.IsA(UsdGeom.Mesh):
-                self._read_or_reuse(prim, t, self._add_mesh)
+                self._read_checked(prim, lambda: self._read_or_reuse(prim, t, self._add_mesh))
             elif any(prim.IsA(c) for c in IMPLICIT):
-                self._read_or_reuse(prim, t, self._add_gprim)
+                self._read_checked(prim, lambda: self._read_or_reuse(prim, t, self._add_gprim))
             elif prim.IsA(UsdGeom.Points):     # camera-facing discs
-                self._add_fields(points_unit_fields(self, prim, t))
+                self._read_checked(prim, lambda: self._add_fields(points_unit_fields(self, prim, t)))
             elif prim.IsA(UsdGeom.BasisCurves):  # camera-facing ribbons
-                self._add_fields(curves_unit_fields(self, prim, t))
+                self._read_checked(prim, lambda: self._add_fields(curves_unit_fields(self, prim, t)))
             elif prim.IsA(UsdGeom.Gprim) or prim.GetTypeName() not in _SILENT_TYPES and not _is_light(prim):
                 warn_once(f"unsupported:{prim.GetPath()}",
                           f"{prim.GetPath()}: prim type {prim.GetTypeName()} is not rendered")
+
+    def _read_checked(self, prim: Usd.Prim, read: Callable[[], None]) -> None:
+        """read() the prim's units; one of its values that is no array of numbers (values.py) makes
+        it invalid geometry: an error, or (--skip-invalid) dropped with what it had added."""
+        n = len(self.units)
+        try:
+            read()
+        except UnreadableValue as exc:
+            del self.units[n:]
+            self._invalid(str(prim.GetPath()), str(exc))
 
     def _read_or_reuse(self, prim: Usd.Prim, t: Usd.TimeCode, read) -> None:
         """The prim's unit as kept from an earlier frame (unit_cache.py), else read(prim, t) and
@@ -165,18 +176,17 @@ class Scene:
         if UsdGeom.Mesh(prim).GetSubdivisionSchemeAttr().Get(t) in (None, UsdGeom.Tokens.none):
             return None
         try:
-            return self._mesh_level(prim, self._points_fn(prim, len(UsdGeom.Mesh(prim).GetPointsAttr().Get(t) or [])))
+            return self._mesh_level(prim, self._points_fn(prim, value_count(UsdGeom.Mesh(prim).GetPointsAttr(), t)))
         except InvalidGeometryError:   # read (and named, or dropped) by _add_mesh
             return None
 
     def _mesh_topology(self, prim: Usd.Prim, t: Usd.TimeCode):
         mesh = UsdGeom.Mesh(prim)
-        counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(t) or [], np.int64)
-        indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(t) or [], np.int64)
-        holes = np.asarray(mesh.GetHoleIndicesAttr().Get(t) or [], np.int64)
+        counts = array_value(mesh.GetFaceVertexCountsAttr(), t, np.int64)
+        indices = array_value(mesh.GetFaceVertexIndicesAttr(), t, np.int64)
+        holes = array_value(mesh.GetHoleIndicesAttr(), t, np.int64)
         left = mesh.GetOrientationAttr().Get(t) == UsdGeom.Tokens.leftHanded
-        points = mesh.GetPointsAttr().Get(t)
-        npts = 0 if points is None else len(points)
+        npts = value_count(mesh.GetPointsAttr(), t)
         path = str(prim.GetPath())
         bad = indices[(indices < 0) | (indices >= npts)]
         problem = (f"negative faceVertexCount {int(counts.min())}" if len(counts) and counts.min() < 0 else

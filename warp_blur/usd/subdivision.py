@@ -32,6 +32,7 @@ import numpy as np
 from scipy import sparse
 
 from .loop import loop_refine
+from .values import array_value, value_count
 
 #: refine while every subdivision mesh of the stage together stays under this many faces (and at
 #: most MAX_LEVEL levels): one level for the whole stage, so that its meshes look alike
@@ -170,9 +171,9 @@ def _one_level(faces: list[np.ndarray], n: int, edge_sharpness: dict | None = No
 def crease_tables(mesh, time, num_points: int) -> tuple[dict, np.ndarray]:
     """A UsdGeom.Mesh's creases ({(a, b) with a < b: sharpness}, one sharpness per crease or per
     crease edge, as USD allows) and corners ((num_points,) sharpness)."""
-    indices = np.asarray(mesh.GetCreaseIndicesAttr().Get(time) or [], np.int64)
-    lengths = np.asarray(mesh.GetCreaseLengthsAttr().Get(time) or [], np.int64)
-    sharpness = np.asarray(mesh.GetCreaseSharpnessesAttr().Get(time) or [], np.float64)
+    indices = array_value(mesh.GetCreaseIndicesAttr(), time, np.int64)
+    lengths = array_value(mesh.GetCreaseLengthsAttr(), time, np.int64)
+    sharpness = array_value(mesh.GetCreaseSharpnessesAttr(), time, np.float64)
     edges: dict = {}
     per_edge = len(sharpness) == int(np.maximum(lengths - 1, 0).sum()) and len(sharpness) != len(lengths)
     start, k = 0, 0
@@ -186,8 +187,8 @@ def crease_tables(mesh, time, num_points: int) -> tuple[dict, np.ndarray]:
             k += 1
         start += int(length)
     corners = np.zeros(num_points)
-    c_idx = np.asarray(mesh.GetCornerIndicesAttr().Get(time) or [], np.int64)
-    c_sharp = np.asarray(mesh.GetCornerSharpnessesAttr().Get(time) or [], np.float64)
+    c_idx = array_value(mesh.GetCornerIndicesAttr(), time, np.int64)
+    c_sharp = array_value(mesh.GetCornerSharpnessesAttr(), time, np.float64)
     for i, v in enumerate(c_idx):
         if 0 <= v < num_points and i < len(c_sharp) and np.isfinite(c_sharp[i]):
             corners[v] = max(corners[v], float(c_sharp[i]))
@@ -411,10 +412,10 @@ def mesh_refinement(mesh, time, num_points: int, levels: int):
     scheme = mesh.GetSubdivisionSchemeAttr().Get(time)
     if levels < 1 or scheme not in (UsdGeom.Tokens.catmullClark, UsdGeom.Tokens.loop):
         return None
-    if len(mesh.GetHoleIndicesAttr().Get(time) or []):
+    if value_count(mesh.GetHoleIndicesAttr(), time):
         return None
-    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(time) or [], np.int64)
-    indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(time) or [], np.int64)
+    counts = array_value(mesh.GetFaceVertexCountsAttr(), time, np.int64)
+    indices = array_value(mesh.GetFaceVertexIndicesAttr(), time, np.int64)
     if mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded:
         return None
     creases, corners = crease_tables(mesh, time, num_points)
