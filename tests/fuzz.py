@@ -6,6 +6,11 @@ Used by tests/test_fuzz.py (a few dozen mutants in-process, every CI run) and, a
 soaks in subprocesses (signals and hangs are seen there):
 
     python tests/fuzz.py --many 2000 [--seed 1] [--timeout 120] [--start N] [--skip-invalid]
+                         [--stage PATH ...]
+
+`--stage` soaks other .usda files instead of the shipped stages (real assets: materials, texture
+graphs, subsets, references); each mutant is written to a folder of links to the file's siblings,
+so its relative asset paths resolve as they do beside the original.
 """
 
 from __future__ import annotations
@@ -28,7 +33,9 @@ _HOSTILE_NUMBERS = [b"nan", b"inf", b"-inf", b"1e300", b"-1e300", b"1e9", b"-1e9
 _ATTRS = [b"focalLength", b"horizontalAperture", b"verticalAperture", b"horizontalApertureOffset",
           b"clippingRange", b"shutter:open", b"shutter:close", b"inputs:intensity", b"inputs:diffuseColor",
           b"inputs:roughness", b"inputs:color", b"faceVertexIndices", b"faceVertexCounts", b"protoIndices",
-          b"inputs:radius", b"xformOp:translate", b"points"]
+          b"inputs:radius", b"xformOp:translate", b"points", b"inputs:st", b"primvars:st", b"inputs:scale",
+          b"inputs:bias", b"inputs:opacity", b"inputs:opacityThreshold", b"indices", b"inputs:metallic",
+          b"creaseSharpnesses", b"xformOp:rotateZXY"]
 
 
 def mutate(data: bytes, rng: random.Random) -> tuple[bytes, str]:
@@ -67,13 +74,22 @@ def mutate(data: bytes, rng: random.Random) -> tuple[bytes, str]:
     return data[:m.start()] + rng.choice(_HOSTILE_NUMBERS) + data[m.end():], kind
 
 
-def mutants(count: int, seed: int):
-    """(index, stage name, method, mutant bytes, mutation) for `count` seeded mutants."""
+def stage_paths(paths: list[str] | None = None) -> dict[str, str]:
+    """name -> .usda path of the stages to mutate: `paths`, or the shipped stages."""
+    if paths:
+        return {os.path.splitext(os.path.basename(p))[0]: os.path.abspath(p) for p in paths}
+    return {name: os.path.join(ROOT, "usd_scenes", f"{name}.usda") for name in STAGES}
+
+
+def mutants(count: int, seed: int, paths: list[str] | None = None):
+    """(index, stage name, method, mutant bytes, mutation) for `count` seeded mutants (of the
+    shipped stages, or of the .usda files `paths`)."""
     rng = random.Random(seed)
-    sources = {name: open(os.path.join(ROOT, "usd_scenes", f"{name}.usda"), "rb").read() for name in STAGES}
+    sources = {name: open(path, "rb").read() for name, path in stage_paths(paths).items()}
+    names = list(sources)
     for i in range(count):
-        name = STAGES[i % len(STAGES)]
-        method = METHODS[(i // len(STAGES)) % len(METHODS)]
+        name = names[i % len(names)]
+        method = METHODS[(i // len(names)) % len(METHODS)]
         data, kind = mutate(sources[name], rng)
         yield i, name, method, data, kind
 
@@ -109,15 +125,32 @@ def judge(code: int, stderr: str, out: str) -> str:
     return f"exit {code}"
 
 
-def soak(count: int, seed: int, timeout: float, start: int = 0, skip_invalid: bool = False) -> collections.Counter:
+def _linked_folder(tmp: str, name: str, source: str) -> str:
+    """A folder in tmp holding links to the siblings of `source` (its relative asset paths
+    resolve there as beside it); the shipped stages need none and share tmp itself."""
+    if os.path.dirname(source) == os.path.join(ROOT, "usd_scenes"):
+        return tmp
+    folder = os.path.join(tmp, f"_{name}")
+    if not os.path.isdir(folder):
+        os.mkdir(folder)
+        for entry in os.listdir(os.path.dirname(source)):
+            if entry != os.path.basename(source):
+                os.symlink(os.path.join(os.path.dirname(source), entry), os.path.join(folder, entry))
+    return folder
+
+
+def soak(count: int, seed: int, timeout: float, start: int = 0, skip_invalid: bool = False,
+         paths: list[str] | None = None) -> collections.Counter:
     """Each mutant in its own process (signals and hangs are outcomes too); prints the bad ones.
     Mutants before `start` are generated (the sequence is seeded) but not run: a soak resumes."""
     from tqdm import tqdm
     counts: collections.Counter = collections.Counter()
+    sources = stage_paths(paths)
     with tempfile.TemporaryDirectory() as tmp:
-        for i, name, method, data, kind in tqdm(list(mutants(count, seed))[start:], unit="mutant"):
-            scene = os.path.join(tmp, f"m{i}.usda")
-            out = os.path.join(tmp, f"m{i}.exr")
+        for i, name, method, data, kind in tqdm(list(mutants(count, seed, paths))[start:], unit="mutant"):
+            folder = _linked_folder(tmp, name, sources[name])
+            scene = os.path.join(folder, f"m{i}.usda")
+            out = os.path.join(folder, f"m{i}.exr")
             with open(scene, "wb") as f:
                 f.write(data)
             try:
@@ -143,7 +176,8 @@ if __name__ == "__main__":
     ap.add_argument("--timeout", type=float, default=120.0, help="seconds before a mutant counts as a hang")
     ap.add_argument("--start", type=int, default=0, help="skip the first mutants of the seeded sequence (resume a soak)")
     ap.add_argument("--skip-invalid", action="store_true", help="render with --skip-invalid (invalid prims dropped)")
+    ap.add_argument("--stage", action="append", help=".usda files to mutate instead of the shipped stages")
     a = ap.parse_args()
-    result = soak(a.many, a.seed, a.timeout, a.start, a.skip_invalid)
+    result = soak(a.many, a.seed, a.timeout, a.start, a.skip_invalid, a.stage)
     for verdict, n in result.most_common():
         print(f"{n:6d}  {verdict}")
