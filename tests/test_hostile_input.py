@@ -531,11 +531,13 @@ def test_a_light_with_no_faces_takes_no_face_slot():
     np.testing.assert_array_equal(faces, rows[:3])
 
 
-@pytest.mark.parametrize("fps", ["inf", "25"])   # (USD itself refuses nan, 0 and -24 as it reads the stage)
+@pytest.mark.parametrize("fps", ["inf", "1e300", "1e-300", "25"])   # (USD refuses nan, 0 and -24 as it reads)
 def test_a_frame_rate_that_is_not_a_finite_positive_number_is_left_out_of_the_exr(tmp_path, fps):
     """`framesPerSecond = inf` (found by the fuzzer, seed 5709; fails the same way at 2cbb900):
     the EXR's framesPerSecond attribute, a rational, raised OverflowError after the frame had
-    rendered (a failed frame). Such a rate is now left out of the file; 25 is written."""
+    rendered (a failed frame). `1e300` (seed 5716, on the Teapot's geometry layer) overflowed the
+    rational's int32 numerator the same way (SystemError); `1e-300` rounds to 0. Such a rate is
+    now left out of the file; 25 is written."""
     path = _rotation_variant(tmp_path, "framesPerSecond = 24", f"framesPerSecond = {fps}")
     out = str(tmp_path / "out.exr")
     code, err = _cli("render", path, "-o", out, "--method", "velocity", "--resolution", "32x24", "--frames", "2")

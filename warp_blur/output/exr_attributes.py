@@ -57,14 +57,22 @@ def camera_to_ndc(proj: Projection) -> np.ndarray:
     return m
 
 
+def exr_frame_rate(frames_per_second: float) -> fractions.Fraction | None:
+    """The rate as the EXR rational it is written as (an int32 numerator over a denominator up to
+    1001), or None when it is no positive number such a rational holds (a stage's `framesPerSecond
+    = inf` or `1e300`, whose numerator overflows, or `1e-300`, which rounds to 0): left out."""
+    if not (np.isfinite(frames_per_second) and frames_per_second > 0):
+        return None
+    fps = fractions.Fraction(frames_per_second).limit_denominator(1001)
+    return fps if 0 < fps.numerator <= 2**31 - 1 else None
+
+
 def standard_attributes(proj: Projection, cam_from_world: np.ndarray, frames_per_second: float,
                         scene_path: str, frame: float) -> dict:
     """The standard attributes of one frame, typed as the OpenEXR binding writes them."""
     now = datetime.datetime.now().astimezone()
     offset = now.utcoffset()
-    # (a rate that is not a finite positive number, such as a stage's `framesPerSecond = inf`, is left out)
-    fps = (fractions.Fraction(frames_per_second).limit_denominator(1001)
-           if np.isfinite(frames_per_second) and frames_per_second > 0 else None)
+    fps = exr_frame_rate(frames_per_second)
     try:
         owner = getpass.getuser()
     except (KeyError, OSError):
