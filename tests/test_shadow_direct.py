@@ -10,8 +10,8 @@ import pytest
 import warp as wp
 
 from warp_blur.raster.device_data import TriangleTables
-from warp_blur.shadows.direct import FaceRasterizer, still_triangles
-from warp_blur.shadows.layout import Face, Sample
+from warp_blur.shadows.direct import STILL_TOL, FaceRasterizer, still_triangles
+from warp_blur.shadows.layout import Face, Sample, light_frame
 
 SIZE = 64
 
@@ -184,3 +184,61 @@ def test_back_faces_of_closed_instances_change_no_texel(perspective, light_insid
     farther = culling.depth_over(a, shift, face, samples[0], None, None, 1) > plain.depth_over(a, shift, face,
                                                                                                 samples[0], None, None, 1)
     assert farther.mean() > 0.05
+
+
+def numpy_still_triangles(probes: list[Sample], row: int, tri_vertices: np.ndarray) -> np.ndarray:
+    """still_triangles as NumPy passes over every vertex (its form before the kernel): the oracle."""
+    ref = probes[0]
+    still_t = np.ones(len(tri_vertices), bool)
+    origin, axes = light_frame(ref.lights[row])
+    local0 = (ref.positions - origin) @ axes.T
+    tol = STILL_TOL * (float(np.abs(local0).max(initial=0.0)) + 1.0)
+    still_v = np.ones(len(local0), bool)
+    for p in probes[1:]:
+        if p.positions.shape != ref.positions.shape:
+            still_v[:] = False
+            break
+        origin, axes = light_frame(p.lights[row])
+        with np.errstate(invalid="ignore"):   # (the NaN and inf vertices)
+            still_v &= (np.abs((p.positions - origin) @ axes.T - local0) <= tol).all(axis=1)
+        if len(p.tri_visible) == len(still_t):
+            still_t &= p.tri_visible == ref.tri_visible
+    return still_t & still_v[tri_vertices].all(axis=1) if len(tri_vertices) else still_t
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_still_triangles_equal_numpys_passes(seed):
+    """The kernel's verdicts equal NumPy's on random scenes: a moving camera and light, vertices
+    moved in the world by far more and far less than the tolerance and by about it, triangles
+    hidden at one probe, a NaN and an inf vertex, two lights (the second row judged)."""
+    rng = np.random.default_rng(seed)
+    n = 3000
+    positions = rng.normal(size=(n, 3)) * 20.0 - (0, 0, 40)
+    tris = rng.integers(0, n, (2000, 3)).astype(np.int32)
+    lights = np.zeros((2, 18), np.float32)
+    lights[:, 4:7] = rng.normal(size=(2, 3)) * 10
+    for j in range(2):
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        lights[j, 7:10], lights[j, 10:13], lights[j, 13:16] = q[2], q[0], q[1]
+    extent = np.abs(positions).max() + 50
+    probes = []
+    for k in range(7):
+        shift = rng.normal(size=3) * (k > 0)
+        p = positions + shift
+        rows = lights.copy()
+        rows[:, 4:7] += shift
+        moved = rng.random(n) < 0.05
+        p[moved] += rng.normal(size=(int(moved.sum()), 3)) * rng.choice([1e-9, 1e-5, 1.0]) * extent
+        if k == 4 and seed % 2 == 0:
+            p[7] = np.nan
+            p[8] = np.inf
+        visible = np.ones(len(tris), bool)
+        if k == 5:
+            visible[rng.random(len(tris)) < 0.01] = False
+        probes.append(Sample(p, visible, rows))
+    for row in (0, 1):
+        expected = numpy_still_triangles(probes, row, tris)
+        assert 0 < expected.sum() < len(tris)
+        np.testing.assert_array_equal(still_triangles(probes, row, tris, threads=2), expected)
+    short = [probes[0], Sample(positions[:-1], probes[1].tri_visible, lights)]
+    assert not still_triangles(short, 0, tris).any()

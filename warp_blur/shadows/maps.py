@@ -206,7 +206,8 @@ class ShadowMaps(KeyWarping):
     def _still_triangles(self, lay: LightLayout) -> np.ndarray:
         """(T,) bool: the triangles that hold still in light lay's frame (direct.still_triangles)."""
         if lay.row not in self._still:
-            self._still[lay.row] = still_triangles([self.sample(u) for u in STILL_PROBES], lay.row, self.tri_vertices)
+            self._still[lay.row] = still_triangles([self.sample(u) for u in STILL_PROBES], lay.row, self.tri_vertices,
+                                                   self.threads)
             self.counters["shadow_still_triangles"] = max(self.counters.get("shadow_still_triangles", 0),
                                                           int(self._still[lay.row].sum()))
         return self._still[lay.row]
