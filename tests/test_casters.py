@@ -120,3 +120,19 @@ def test_size_prefilter_keeps_the_triangles_numpy_would():
     assert 100 < len(want) < len(tris)
     assert set(got[~np.isin(got, tris[near])]) == set(want[~np.isin(want, tris[near])])
     assert len(triangles_at_least(positions, tri_vertices, tris[:0], bound)) == 0
+
+
+@pytest.mark.parametrize("n", [1, 7, 70_000, 300_001])
+def test_support_equals_numpys_product_max_and_first_argmax(n):
+    """casters.support's kernel bands give NumPy's (DIRECTIONS @ points.T).max and .argmax
+    (the first index of a tie) exactly: points on an integer grid tie often, and a far point and
+    negative coordinates are in."""
+    rng = np.random.default_rng(n)
+    points = rng.integers(-3, 4, (n, 3)).astype(np.float64)
+    points[rng.random(n) < 0.3] *= 1.37
+    if n > 10:
+        points[n // 2] = (1e12, -1e12, 3.0)
+    proj = casters.DIRECTIONS @ points.T
+    best, at = casters.support(points, threads=2)
+    np.testing.assert_array_equal(best, proj.max(axis=1))
+    np.testing.assert_array_equal(at, proj.argmax(axis=1))
