@@ -24,6 +24,7 @@ from ...core.camera import Projection
 from ...core.memory import check_entries_fit
 from ...core.parallel import Background, default_threads
 from ...raster.culling import hidden_back_faces
+from .chords import raise_chord_errors, screen_path_px
 from ..frame import MOTION_PROBES
 from ...core.log import warn_once
 from ...usd.scene import Scene
@@ -182,9 +183,6 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
             snaps[k] = reuse if reuse is not None else scene.snapshot(shutter_time(k / m), with_normals=False)
         return snaps[k]   # (normals: kept knots only, computed below)
 
-    def pos(k: int, o: int, n: int) -> np.ndarray:
-        return snap(k).positions[o:o + n]
-
     seg_of_unit = [0] * len(scene.units)
     pending: dict[int, np.ndarray] = {}
     probes = sorted({int(round(u * m)) for u in MOTION_PROBES}) if not instant else [0]
@@ -199,8 +197,7 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
         counts = np.concatenate([[0], np.cumsum(moved)])
         moves = counts[ends] > counts[starts]
     if moves.any():   # each moving vertex's tolerance: a share of its screen path over the probes
-        ps = [snap(k).positions for k in probes]
-        path_px = sum(screen_distance_px(proj, b, a) for a, b in zip(ps, ps[1:]))
+        path_px = screen_path_px(proj, [snap(k).positions for k in probes])
         tolerance = np.maximum(np.minimum(error_px, time_error * path_px), 1e-3)
         for ui in np.flatnonzero(moves):
             o, n = scene.unit_vertex_offsets[ui], scene.units[ui].num_points * scene.units[ui].num_instances
@@ -232,10 +229,9 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
         dev_all = np.zeros(len(idx))
         for j in range(k):
             a, b = parts * j * stride, (parts * j + parts) * stride
-            pa, pb = snap(a).positions[idx], snap(b).positions[idx]
             for q in range(1, parts):
-                approx = pa + (q / parts) * (pb - pa)
-                dev_all = np.maximum(dev_all, screen_distance_px(proj, snap(a + q * stride).positions[idx], approx))
+                raise_chord_errors(proj, snap(a).positions, snap(b).positions, snap(a + q * stride).positions,
+                                   q / parts, idx, dev_all)
         start = 0
         for ui, (o, n) in zip(units, spans):
             dev = dev_all[start:start + n]
@@ -259,8 +255,8 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
         for j in range(m):
             if j not in mids:
                 mids[j] = scene.snapshot(shutter_time((j + 0.5) / m), with_normals=False)
-            approx = 0.5 * (pos(j, o, n) + pos(j + 1, o, n))
-            dev = np.maximum(dev, screen_distance_px(proj, mids[j].positions[o:o + n], approx))
+            raise_chord_errors(proj, snap(j).positions, snap(j + 1).positions, mids[j].positions, 0.5,
+                               np.arange(o, o + n), dev)
         max_err = max(max_err, float(dev.max()) if n else 0.0)
         if (dev <= pending[ui]).all():
             continue
@@ -285,8 +281,12 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
     vis = np.stack([snap(i).tri_visible for i in keep]) if scene.num_triangles else np.zeros((len(keep), 0), bool)
     # vertices that never move over the sampled knots: their triangles are static entries even
     # inside a moving prim (e.g. the resting instances of an instancer, or a skinned body's torso)
-    sampled = np.stack([snaps[i].positions for i in sorted(snaps)]) if snaps else None
-    vertex_static = (sampled == sampled[:1]).all(axis=(0, 2)) if sampled is not None else None
+    vertex_static = None
+    if snaps:
+        first = snaps[min(snaps)].positions
+        vertex_static = np.ones(len(first), bool)
+        for i in sorted(snaps)[1:]:
+            vertex_static &= (snaps[i].positions == first).all(axis=1)
     entry_tri, entry_k0, entry_k1 = plan_entries(scene.tri_unit, scene.tri_vertices, np.array(seg_of_unit, np.int64),
                                                  k_global, vis, vertex_static)
     return MotionPlan(positions=positions, normals=normals, lights=lights, entry_tri=entry_tri,

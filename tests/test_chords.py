@@ -1,0 +1,39 @@
+"""methods/analytic/chords.py: the planner's screen paths and chord errors, as kernels, equal
+segments.screen_distance_px's NumPy passes (to float64 rounding: the kernel may fuse a multiply
+and an add), perspective and orthographic, with points behind the near plane and at the eye."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from warp_blur.core.camera import Projection
+from warp_blur.methods.analytic.chords import raise_chord_errors, screen_path_px
+from warp_blur.methods.analytic.segments import screen_distance_px
+
+
+def _points(rng, n):
+    p = rng.normal(size=(n, 3)) * 4.0 - (0, 0, 10)
+    p[: n // 10, 2] = rng.uniform(-0.05, 2.0, n // 10)   # at or behind the near plane
+    p[n // 10] = 0.0                                      # at the eye
+    return p
+
+
+@pytest.mark.parametrize("ortho", [False, True])
+def test_screen_paths_and_chord_errors_equal_numpys(ortho):
+    rng = np.random.default_rng(int(ortho))
+    proj = Projection(ortho, (-0.7, -0.5, 0.7, 0.5), 0.1, 1000.0, 320, 240)
+    n = 50_000
+    probes = [_points(rng, n) for _ in range(4)]
+    expected = sum(screen_distance_px(proj, b, a) for a, b in zip(probes, probes[1:]))
+    np.testing.assert_allclose(screen_path_px(proj, probes, threads=2), expected, rtol=1e-12)
+    idx = np.sort(rng.choice(n, n // 3, replace=False))
+    a, b, truth = probes[0], probes[1], probes[2]
+    chords = [screen_distance_px(proj, truth[idx], a[idx] + f * (b[idx] - a[idx])) for f in (0.25, 0.5, 0.75)]
+    start = rng.uniform(0, 2, len(idx)) * np.median(chords[1])   # some errors above the chords' and some below
+    err, want = start.copy(), start
+    for f, chord in zip((0.25, 0.5, 0.75), chords):
+        want = np.maximum(want, chord)
+        raise_chord_errors(proj, a, b, truth, f, idx, err, threads=2)
+    np.testing.assert_allclose(err, want, rtol=1e-12)
+    assert (err > start).any() and (err == start).any()

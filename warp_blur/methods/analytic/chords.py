@@ -1,0 +1,91 @@
+"""The motion planner's per-vertex screen distances as float64 kernels over bands of vertices.
+
+segments.plan_motion measures, for every vertex of the prims that move, its screen path over the
+probes (its error tolerance) and how far each candidate segment's chord strays from USD's true
+position at the check points. In NumPy each measurement was ~10 passes over (V, 3) arrays and a
+gathered copy of the positions; with 1000 particle spheres (640 k vertices) the planner took
+0.55 s of the frame, before the shadow maps could start. Here each is one pass that reads the
+snapshots' arrays in place. segments.screen_distance_px stays the NumPy form (the tests' oracle).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ...core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
+from ...core.camera import Projection
+from ...core.parallel import launch_pixels
+
+
+@wp.func
+def screen_px(p: wp.vec3d, q: wp.vec3d, ortho: int, near: wp.float64, ppu: wp.float64) -> wp.float64:
+    """Screen distance (pixels) between camera-space points p and q (segments.screen_distance_px:
+    perspective at the nearer depth, at least the near plane); inf where it is not a number."""
+    d = p - q
+    dist = wp.float64(0.0)
+    if ortho != 0:
+        dist = wp.sqrt(d[0] * d[0] + d[1] * d[1]) * ppu
+    else:
+        depth = wp.max(wp.min(-p[2], -q[2]), near)
+        dist = wp.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / depth * ppu
+    if wp.isnan(dist):
+        dist = wp.float64(wp.inf)
+    return dist
+
+
+@wp.kernel(enable_backward=False)
+def add_screen_steps(a: wp.array(dtype=wp.vec3d), b: wp.array(dtype=wp.vec3d), ortho: int, near: wp.float64,
+                     ppu: wp.float64, first: int,
+                     # output
+                     total: wp.array(dtype=wp.float64)):
+    """total[v] += the screen distance from a[v] to b[v] (v = first + tid)."""
+    v = first + wp.tid()
+    total[v] = total[v] + screen_px(b[v], a[v], ortho, near, ppu)
+
+
+@wp.kernel(enable_backward=False)
+def max_chord_error(a: wp.array(dtype=wp.vec3d), b: wp.array(dtype=wp.vec3d), truth: wp.array(dtype=wp.vec3d),
+                    idx: wp.array(dtype=wp.int32), f: wp.float64, ortho: int, near: wp.float64, ppu: wp.float64,
+                    first: int,
+                    # output
+                    err: wp.array(dtype=wp.float64)):
+    """err[i] = max(err[i], screen distance from truth to a + f (b - a)) at vertex idx[i]
+    (i = first + tid)."""
+    i = first + wp.tid()
+    v = idx[i]
+    pa = a[v]
+    approx = pa + f * (b[v] - pa)
+    err[i] = wp.max(err[i], screen_px(truth[v], approx, ortho, near, ppu))
+
+
+def _vectors(points: np.ndarray) -> wp.array:
+    return wp.array(np.ascontiguousarray(points, np.float64), dtype=wp.vec3d, device="cpu", copy=False)
+
+
+def _camera(proj: Projection) -> list:
+    return [int(proj.orthographic), wp.float64(proj.near), wp.float64(proj.pixels_per_unit)]
+
+
+def screen_path_px(proj: Projection, probes: list[np.ndarray], threads: int | None = None) -> np.ndarray:
+    """(V,) each vertex's screen path (pixels) through the probes' positions ((V, 3) each, in order)."""
+    n = len(probes[0])
+    total = np.zeros(n, np.float64)
+    out = wp.array(total, dtype=wp.float64, device="cpu", copy=False)
+    for a, b in zip(probes, probes[1:]):
+        fixed = [_vectors(a), _vectors(b), *_camera(proj)]
+        launch_pixels(add_screen_steps, n, lambda first, _n: [*fixed, first, out], "cpu", threads)
+    return total
+
+
+def raise_chord_errors(proj: Projection, a: np.ndarray, b: np.ndarray, truth: np.ndarray, f: float,
+                       idx: np.ndarray, err: np.ndarray, threads: int | None = None) -> None:
+    """err (N,) float64 := max(err, the screen distance (pixels) between truth and a + f (b - a))
+    at the vertices idx (N,) of the (V, 3) positions a, b and truth, in place."""
+    if len(idx) == 0:
+        return
+    assert err.dtype == np.float64 and err.flags.c_contiguous
+    out = wp.array(err, dtype=wp.float64, device="cpu", copy=False)
+    fixed = [_vectors(a), _vectors(b), _vectors(truth), wp.array(np.asarray(idx, np.int32), dtype=wp.int32, device="cpu"),
+             wp.float64(f), *_camera(proj)]
+    launch_pixels(max_chord_error, len(idx), lambda first, _n: [*fixed, first, out], "cpu", threads)
