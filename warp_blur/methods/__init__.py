@@ -14,9 +14,11 @@ MethodFn = Callable[[FrameContext], np.ndarray]
 
 
 #: kernel modules used by every method (the sharp and shadow-map rasterisers, back-face culling,
-#: tile lists, the shadow casters' triangle sizes, vertex normals), the longest to build first
+#: tile lists, the shadow casters' triangle sizes, vertex normals, the shadow set-up's vertex
+#: passes), the longest to build first
 _SHARED = ("warp_blur.kernels.raster", "warp_blur.kernels.shadow_raster", "warp_blur.raster.tile_lists",
-           "warp_blur.raster.culling", "warp_blur.raster.triangle_sizes", "warp_blur.usd.normals")
+           "warp_blur.raster.culling", "warp_blur.raster.triangle_sizes", "warp_blur.usd.normals",
+           "warp_blur.shadows.vertex_passes")
 
 #: the Warp modules each method's frames launch kernels of (core/preload.py builds them side by side
 #: before the first frame; tests/test_preload.py checks each list against the modules a method loads
@@ -25,10 +27,10 @@ KERNEL_MODULES: dict[str, tuple[str, ...]] = {
     "accumulation": _SHARED + ("warp_blur.kernels.shadow_free",),
     "stochastic": ("warp_blur.methods.stochastic",) + _SHARED + (
         "warp_blur.methods.analytic.coverage", "warp_blur.kernels.shadow_free", "warp_blur.raster.screen_bounds",
-        "warp_blur.methods.analytic.moving"),
+        "warp_blur.methods.analytic.moving", "warp_blur.methods.analytic.chords"),
     "analytic": ("warp_blur.methods.analytic.intervals", "warp_blur.methods.analytic.resolve") + _SHARED + (
         "warp_blur.methods.analytic.coverage", "warp_blur.kernels.shadow_free", "warp_blur.raster.screen_bounds",
-        "warp_blur.methods.analytic.moving"),
+        "warp_blur.methods.analytic.moving", "warp_blur.methods.analytic.chords"),
     "velocity": _SHARED + ("warp_blur.methods.velocity_buffers", "warp_blur.methods.velocity"),
 }
 

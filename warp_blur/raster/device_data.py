@@ -67,15 +67,19 @@ class TriangleTables:
 def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.ndarray | None,
                   entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray,
                   velocities: np.ndarray | None = None) -> Geometry:
-    """positions: (K+1, V, 3) camera space (float64 ok); normals: same shape or None;
+    """positions: (K+1, V, 3) camera space (float64 ok), or a (K+1, V) float32 wp.vec3 array on
+    the device, taken as it is (shadows/direct.face_positions); normals: (K+1, V, 3) or None;
     velocities: (V, 3) camera-space units per shutter of the vertices at a sharp instant, for
     shadow lookups in maps of other instants (None: static entries hold still)."""
     dev = tables.device
     g = Geometry()
-    k1, v = positions.shape[0], max(positions.shape[1], 1)
-    pos = np.zeros((k1, v, 3), np.float32)
-    pos[:, :positions.shape[1]] = positions
-    g.positions = wp.array(pos, dtype=wp.vec3, device=dev)
+    k1 = positions.shape[0]
+    if isinstance(positions, wp.array):
+        g.positions = positions
+    else:
+        pos = np.zeros((k1, max(positions.shape[1], 1), 3), np.float32)
+        pos[:, :positions.shape[1]] = positions
+        g.positions = wp.array(pos, dtype=wp.vec3, device=dev)
     if normals is None or normals.size == 0:
         g.normals = wp.zeros((1, 1), dtype=wp.vec3, device=dev)
     else:

@@ -15,20 +15,15 @@ sample positions (or its direction, for a distant light) at that instant.
 
 from __future__ import annotations
 
-import itertools
 from typing import Callable
 
 import numpy as np
-import warp as wp
 
-from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
-from ..core.parallel import default_threads, map_threads
 from ..raster.triangle_sizes import triangles_at_least
 from ..usd.lights import DISTANT
 from .layout import LightLayout, Sample, light_frame
+from .vertex_passes import DIRECTIONS, support
 
-#: the 26 directions of a 3×3×3 grid: the scene's extreme vertices along them pre-test every plane
-DIRECTIONS = np.array([d for d in itertools.product((-1.0, 0.0, 1.0), repeat=3) if any(d)])
 #: most planes checked exactly per frame (the largest first); triangles of the others stay in the maps
 MAX_PLANES = 32
 #: a vertex within this distance (relative to the scene's extent) of a plane lies on it
@@ -66,52 +61,6 @@ def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Row-wise u × v of (N, 3) arrays (np.cross is several times slower on long arrays)."""
     return np.stack([u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1], u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2],
                      u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]], axis=1)
-
-
-@wp.kernel(enable_backward=False)
-def band_support(points: wp.array(dtype=wp.vec3d), directions: wp.array(dtype=wp.vec3d), start: int, stop: int,
-                 # outputs
-                 best: wp.array(dtype=wp.float64), arg: wp.array(dtype=int)):
-    """For direction tid: the largest d · p over points[start:stop] and the first index holding
-    it (the band's share of `support`; -inf and -1 for an empty band)."""
-    j = wp.tid()
-    d = directions[j]
-    top = wp.float64(-wp.inf)
-    at = int(-1)
-    for i in range(start, stop):
-        p = points[i]
-        v = p[0] * d[0] + p[1] * d[1] + p[2] * d[2]
-        if v > top:
-            top = v
-            at = i
-    best[j] = top
-    arg[j] = at
-
-
-def support(points: np.ndarray, threads: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(26,) the largest DIRECTIONS · p over points (U, 3) float64 and (26,) the first point index
-    holding each, as NumPy's (DIRECTIONS @ points.T).max / .argmax (the products by ±1 and 0 are
-    exact, so the sums are the same): bands of points on every core, without the (26, U)
-    product, which cost 0.2 s a frame for 1000 particle spheres."""
-    n, dev = len(points), "cpu"
-    pts = wp.array(np.ascontiguousarray(points, np.float64), dtype=wp.vec3d, device=dev, copy=False)
-    dirs = wp.array(DIRECTIONS, dtype=wp.vec3d, device=dev)
-    bands = max(1, min(n // 65536, 4 * (threads or default_threads())))
-    cuts = np.linspace(0, n, bands + 1).astype(np.int64)
-
-    def band(k: int) -> tuple[np.ndarray, np.ndarray]:
-        best = wp.empty(len(DIRECTIONS), dtype=wp.float64, device=dev)
-        arg = wp.empty(len(DIRECTIONS), dtype=int, device=dev)
-        wp.launch(band_support, dim=len(DIRECTIONS), inputs=[pts, dirs, int(cuts[k]), int(cuts[k + 1]), best, arg],
-                  device=dev)
-        return best.numpy(), arg.numpy()
-
-    parts = map_threads(band, range(bands), threads)
-    best = np.stack([b for b, _ in parts])
-    arg = np.stack([a for _, a in parts])
-    first = best.argmax(axis=0)                        # the earliest band holding the maximum
-    cols = np.arange(len(DIRECTIONS))
-    return best[first, cols], arg[first, cols]
 
 
 def bounding_planes(s: Sample, tri_vertices: np.ndarray) -> list[PlaneGroup]:

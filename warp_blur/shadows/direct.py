@@ -15,6 +15,7 @@ from ..raster.binning import TILE_SIZE, bin_entries, entry_pixel_bounds
 from ..kernels.kernel_types import Geometry
 from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_view
 from .layout import Face, Sample, light_frame
+from .vertex_passes import face_positions, light_frame_changes
 
 #: shutter instants at which a triangle must hold still to render once into a static base map
 #: (the motion planner's probes; a vertex is still when it is the same at all of them)
@@ -25,52 +26,22 @@ STILL_PROBES = (0.0, 0.1234, 0.25, 0.5, 0.618, 0.75, 1.0)
 STILL_TOL = 1e-5
 
 
-@wp.kernel(enable_backward=False)
-def light_local_change(ref: wp.array(dtype=wp.vec3d), probe: wp.array(dtype=wp.vec3d), o0: wp.vec3d, m0: wp.mat33d,
-                       o1: wp.vec3d, m1: wp.mat33d, first: int,
-                       # outputs
-                       change: wp.array(dtype=wp.float64), size: wp.array(dtype=wp.float64)):
-    """Vertex v = first + tid in a light's frame (origin o, rows of m its axes) at a reference
-    probe and at another: change[v] = max(change[v], the largest coordinate difference; inf if not
-    a number), size[v] = its largest reference coordinate (magnitude)."""
-    v = first + wp.tid()
-    l0 = m0 * (ref[v] - o0)
-    d = m1 * (probe[v] - o1) - l0
-    dmax = wp.max(wp.max(wp.abs(d[0]), wp.abs(d[1])), wp.abs(d[2]))
-    if wp.isnan(dmax):
-        dmax = wp.float64(wp.inf)
-    change[v] = wp.max(change[v], dmax)
-    size[v] = wp.max(wp.max(wp.abs(l0[0]), wp.abs(l0[1])), wp.abs(l0[2]))
-
-
 def still_triangles(probes: list[Sample], row: int, tri_vertices: np.ndarray, threads: int | None = None) -> np.ndarray:
     """(T,) bool: triangles that hold still in light `row`'s frame, the same (to STILL_TOL of the
     scene's extent) and equally visible at every probe. Under a light that holds still in the
     world these are the world-still triangles whatever the camera does: stillness is judged in
     the light's frame, where the maps are rigid, not in camera space. Each probe's light-frame
-    change is one float64 kernel pass over bands of vertices (NumPy's form, kept as the tests'
-    oracle, made ~8 passes over every vertex a probe: 0.5 s a frame for 1000 particle spheres)."""
+    change is one float64 kernel pass over bands of vertices (vertex_passes.py; NumPy's form, kept
+    as the tests' oracle, made ~8 passes over every vertex a probe)."""
     ref = probes[0]
     still_t = np.ones(len(tri_vertices), bool)
-    n = len(ref.positions)
     if any(p.positions.shape != ref.positions.shape for p in probes[1:]):
         return np.zeros(len(tri_vertices), bool)
-    change = np.zeros(n, np.float64)
-    size = np.zeros(n, np.float64)
-    if n and len(probes) > 1:
-        dev = "cpu"
-        o0, m0 = light_frame(ref.lights[row])
-        as_vec = lambda a: wp.array(np.ascontiguousarray(a, np.float64), dtype=wp.vec3d, device=dev, copy=False)
-        outputs = [wp.array(change, dtype=wp.float64, device=dev, copy=False),
-                   wp.array(size, dtype=wp.float64, device=dev, copy=False)]
-        ref_wp = as_vec(ref.positions)
-        for p in probes[1:]:
-            o1, m1 = light_frame(p.lights[row])
-            fixed = [ref_wp, as_vec(p.positions), wp.vec3d(*o0), wp.mat33d(*m0.ravel()), wp.vec3d(*o1),
-                     wp.mat33d(*m1.ravel())]
-            launch_pixels(light_local_change, n, lambda first, _n: [*fixed, first, *outputs], dev, threads)
-            if len(p.tri_visible) == len(still_t):
-                still_t &= p.tri_visible == ref.tri_visible
+    change, size = light_frame_changes(ref.positions, light_frame(ref.lights[row]),
+                                       [(p.positions, light_frame(p.lights[row])) for p in probes[1:]], threads)
+    for p in probes[1:]:
+        if len(p.tri_visible) == len(still_t):
+            still_t &= p.tri_visible == ref.tri_visible
     tol = STILL_TOL * (float(size.max(initial=0.0)) + 1.0)
     still_v = change <= tol
     return still_t & still_v[tri_vertices].all(axis=1) if len(tri_vertices) else still_t
@@ -154,14 +125,19 @@ class FaceRasterizer:
         order-free). Depth-only maps are splatted rather than gathered per texel: a texel then
         tests the triangles that cover it, not its tile's whole list; each triangle finds its own
         box in the kernel, so the host neither bounds nor bins."""
-        proj, q, tris, geo = self._face_geometry(a, t, face, s, subset)
+        proj = face.projection(self.size)
+        tris = self._visible(s, subset)
+        k = np.zeros(len(tris), np.int32)
+        placed = face_positions([(a, t)], [s], [0], 1, self.device, threads)
+        geo = make_geometry(self.tables, placed, None, tris, k, k)
         view = make_view(proj, 1, None, TILE_SIZE)
         view.near = face.near
         if base is None:
             depth = wp.full(self.size * self.size, wp.inf, dtype=float, device=self.device)
         else:
             depth = wp.array(base.ravel(), dtype=float, device=self.device)
-        cull = self.cull_signs(q[None], [0], face)
+        # (an orthographic face's cull test reads no depth; a perspective one's reads them in float64)
+        cull = self.cull_signs(placed.numpy() if face.ortho else (s.positions @ a.T + t)[None], [0], face)
         num_tris = len(self.tri_vertices)
         launch_row_bands(splat_shadow_depth, len(tris), self.size,
                          lambda y0, y1: [view, geo, y0, y1, 1, cull, num_tris, 1, depth, self.no_flags, self.no_flags],
@@ -176,11 +152,10 @@ class FaceRasterizer:
         and samples[i]; others unused), one static entry per triangle visible at an instant (of
         `subset`) with entry_k0 = entry_k1 = its instant, and face's cull_signs. None when no
         triangle is visible."""
-        num_v = max(len(s.positions) for s in samples)
-        pos = np.zeros((times, max(num_v, 1), 3), np.float32)
+        placed = face_positions(transforms, samples, instants, times, self.device)
+        pos = placed.numpy().reshape(times, -1, 3)   # (a view of the same memory: the cull test reads depths)
         tris, ks = [], []
-        for (a, t), s, b in zip(transforms, samples, instants):
-            pos[b, :len(s.positions)] = s.positions @ a.T + t
+        for s, b in zip(samples, instants):
             tri = self._visible(s, subset)
             tris.append(tri)
             ks.append(np.full(len(tri), b, np.int32))
@@ -188,7 +163,7 @@ class FaceRasterizer:
         if len(tri) == 0:
             return None
         k = np.concatenate(ks)
-        return make_geometry(self.tables, pos, None, tri, k, k), self.cull_signs(pos, instants, face)
+        return make_geometry(self.tables, placed, None, tri, k, k), self.cull_signs(pos, instants, face)
 
     def splat_instants(self, face: Face, prepared: tuple[Geometry, wp.array], times: int, target: wp.array,
                        touched: wp.array, threads: int | None, occupied: wp.array | None = None,
