@@ -242,3 +242,23 @@ def test_still_triangles_equal_numpys_passes(seed):
         np.testing.assert_array_equal(still_triangles(probes, row, tris, threads=2), expected)
     short = [probes[0], Sample(positions[:-1], probes[1].tri_visible, lights)]
     assert not still_triangles(short, 0, tris).any()
+
+
+def test_face_positions_equal_numpys_product_in_float32():
+    """vertex_passes.face_positions: row b of the (times, V) float32 array is positions @ A.T + t
+    as NumPy computes it in float64 and rounds to float32 (to float32's last place: the kernel may
+    fuse a multiply and an add); rows not asked for are 0."""
+    from warp_blur.shadows.vertex_passes import face_positions
+    rng = np.random.default_rng(3)
+    samples, transforms = [], []
+    for k in range(2):
+        positions = rng.normal(size=(20_000 + k, 3)) * 50.0
+        samples.append(Sample(positions, np.ones(0, bool), np.zeros((0, 18), np.float32)))
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        transforms.append((q * rng.uniform(0.5, 2.0), rng.normal(size=3) * 10.0))
+    out = face_positions(transforms, samples, [3, 1], 4, threads=2).numpy()
+    assert out.shape == (4, 20_001, 3) and out.dtype == np.float32
+    for (a, t), s, row in zip(transforms, samples, [3, 1]):
+        want = (s.positions @ a.T + t).astype(np.float32)
+        np.testing.assert_allclose(out[row, :len(want)], want, rtol=2e-7, atol=1e-5)
+    assert not out[0].any() and not out[2].any() and not out[3, 20_000].any()
