@@ -267,12 +267,16 @@ def cube_faces(size: int) -> list[Face]:
     return faces
 
 
+def distant_face(lo: np.ndarray, hi: np.ndarray) -> Face:
+    """A distant light's one face, around light-local x, y bounds lo (2,) and hi (2,) of the geometry."""
+    pad = 0.02 * float((hi - lo).max()) + 1e-6
+    return Face(np.eye(3), (lo[0] - pad, lo[1] - pad, hi[0] + pad, hi[1] + pad), True, -FAR)
+
+
 def fit_faces(kind: int, local: np.ndarray, size: int) -> list[Face]:
     """Faces of a light from light-local points (N, 3) of the geometry (all samples, probes)."""
     if kind == DISTANT:
-        lo, hi = local[:, :2].min(axis=0), local[:, :2].max(axis=0)
-        pad = 0.02 * float((hi - lo).max()) + 1e-6
-        return [Face(np.eye(3), (lo[0] - pad, lo[1] - pad, hi[0] + pad, hi[1] + pad), True, -FAR)]
+        return [distant_face(local[:, :2].min(axis=0), local[:, :2].max(axis=0))]
     dist = np.linalg.norm(local, axis=1)
     scale = float(dist.max()) if len(dist) else 1.0
     use = dist > 1e-9 * scale

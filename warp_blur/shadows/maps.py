@@ -26,16 +26,17 @@ import numpy as np
 import warp as wp
 
 from ..raster.device_data import TriangleTables
-from ..usd.lights import DISK, RECT, SPHERE
+from ..usd.lights import DISK, DISTANT, RECT, SPHERE
 from ..core.log import warn_once
 from ..core.parallel import default_threads, map_threads
 from ..kernels.shadow_lookup import FACE_WIDTH
 from ..raster.culling import instance_volume_sign
 from .casters import light_casters, used_vertex_index
 from .direct import STILL_PROBES, FaceRasterizer, still_triangles
-from .layout import (FAR, Face, LightLayout, Sample, ShadowData, ShadowOptions, fit_faces, light_frame,
+from .layout import (FAR, Face, LightLayout, Sample, ShadowData, ShadowOptions, distant_face, fit_faces, light_frame,
                      light_sample_offsets)
 from .texel_major import TexelMajorLayout
+from .vertex_passes import light_fit
 from .warped import KeyWarping
 
 #: cost of warping one texel of a map (host-side mesh and gather kernel, seconds), measured by
@@ -129,16 +130,19 @@ class ShadowMaps(KeyWarping):
         with self._lock:
             self.counters[name] = self.counters.get(name, 0) + n
 
-    def _used_vertices(self, s: Sample) -> np.ndarray:
-        """(U, 3) positions at s of the vertices of its visible triangles (all triangles' when it
-        has no visibility), in index order; the index set is remembered per visibility mask (the
-        probes of a frame mostly share one)."""
+    def _used(self, s: Sample) -> np.ndarray:
+        """(U,) ascending indices of the vertices of s's visible triangles (all triangles' when it
+        has no visibility), remembered per visibility mask (the probes of a frame mostly share one)."""
         key = s.tri_visible.tobytes() if len(s.tri_visible) else b""
         index = self._used_index.get(key)
         if index is None:
             visible = s.tri_visible if len(s.tri_visible) else np.ones(len(self.tri_vertices), bool)
             index = self._used_index[key] = used_vertex_index(visible, self.tri_vertices, len(s.positions))
-        return s.positions[index]
+        return index
+
+    def _used_vertices(self, s: Sample) -> np.ndarray:
+        """(U, 3) positions at s of the vertices of its visible triangles, in index order."""
+        return s.positions[self._used(s)]
 
     def _local(self, j: int, s: Sample) -> np.ndarray:
         origin, axes = light_frame(s.lights[j])
@@ -150,6 +154,15 @@ class ShadowMaps(KeyWarping):
         for j in rows:
             row = probes[1].lights[j]
             kind = int(row[0])
+            if kind == DISTANT:   # its face needs only bounds: kernel passes (vertex_passes.light_fit)
+                lo, hi, top, count, change = light_fit([(s.positions, self._used(s), light_frame(s.lights[j]))
+                                                        for s in probes], FIT_LIMIT, self.threads)
+                if count == 0:
+                    continue
+                static = change is not None and change <= 1e-9 * (top + 1.0)
+                static &= all(np.array_equal(s.tri_visible, probes[0].tri_visible) for s in probes[1:])
+                self.layouts.append(LightLayout(j, kind, np.zeros((1, 3)), [distant_face(lo[:2], hi[:2])], static))
+                continue
             locs = [self._local(j, s) for s in probes]
             allp = np.concatenate(locs)
             allp = allp[(np.abs(allp) <= FIT_LIMIT).all(axis=1)]   # (NaN fails too)

@@ -2,8 +2,9 @@
 what NumPy did in many passes over (V, 3) arrays, which a stage of 1000 particle spheres (640 k
 vertices) made ~1 s of a frame on the thread that builds the maps: which vertices hold still in a
 light's frame (direct.still_triangles), the faces' float32 positions at each map instant
-(direct.FaceRasterizer) and the scene's extreme vertices in 26 directions (casters.bounding_planes).
-Each equals its NumPy form (tests/test_shadow_direct.py, tests/test_casters.py)."""
+(direct.FaceRasterizer), the scene's extreme vertices in 26 directions (casters.bounding_planes) and
+a distant light's fit and stillness (maps.ShadowMaps._plan). Each equals its NumPy form
+(tests/test_shadow_direct.py, tests/test_casters.py, tests/test_shadows.py)."""
 
 from __future__ import annotations
 
@@ -138,3 +139,72 @@ def support(points: np.ndarray, threads: int | None = None) -> tuple[np.ndarray,
     first = best.argmax(axis=0)                        # the earliest band holding the maximum
     cols = np.arange(len(DIRECTIONS))
     return best[first, cols], arg[first, cols]
+
+
+@wp.kernel(enable_backward=False)
+def band_light_fit(ref: wp.array(dtype=wp.vec3d), ref_idx: wp.array(dtype=wp.int32), probe: wp.array(dtype=wp.vec3d),
+                   probe_idx: wp.array(dtype=wp.int32), o0: wp.vec3d, m0: wp.mat33d, o1: wp.vec3d, m1: wp.mat33d,
+                   compare: int, limit: wp.float64, start: int, stop: int,
+                   # output
+                   out: wp.array(dtype=wp.float64)):
+    """Over points i in [start, stop) (one thread): light-local l = m1 (probe[probe_idx[i]] - o1);
+    of those with every |coordinate| <= limit, out[0:3] the least and out[3:6] the greatest
+    coordinates, out[6] the largest |coordinate| and out[7] how many; out[8] (compare = 1) the
+    largest coordinate change from the reference m0 (ref[ref_idx[i]] - o0) (inf if not a number)."""
+    inf = wp.float64(wp.inf)
+    lo = wp.vec3d(inf, inf, inf)
+    hi = wp.vec3d(-inf, -inf, -inf)
+    top = wp.float64(0.0)
+    count = wp.float64(0.0)
+    change = wp.float64(0.0)
+    for i in range(start, stop):
+        l = m1 * (probe[probe_idx[i]] - o1)
+        a = wp.max(wp.max(wp.abs(l[0]), wp.abs(l[1])), wp.abs(l[2]))
+        if a <= limit:
+            lo = wp.vec3d(wp.min(lo[0], l[0]), wp.min(lo[1], l[1]), wp.min(lo[2], l[2]))
+            hi = wp.vec3d(wp.max(hi[0], l[0]), wp.max(hi[1], l[1]), wp.max(hi[2], l[2]))
+            top = wp.max(top, a)
+            count = count + wp.float64(1.0)
+        if compare != 0:
+            d = l - m0 * (ref[ref_idx[i]] - o0)
+            dmax = wp.max(wp.max(wp.abs(d[0]), wp.abs(d[1])), wp.abs(d[2]))
+            if wp.isnan(dmax):
+                dmax = inf
+            change = wp.max(change, dmax)
+    for c in range(3):
+        out[c] = lo[c]
+        out[3 + c] = hi[c]
+    out[6] = top
+    out[7] = count
+    out[8] = change
+
+
+def light_fit(probes: list[tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]], limit: float,
+              threads: int | None = None) -> tuple[np.ndarray, np.ndarray, float, int, float | None]:
+    """A light's fit over its probes ((positions (V, 3), used vertex index (U,), light frame
+    (origin, axes)) each): (least (3,) and greatest (3,) light-local coordinates and the largest
+    |coordinate| of the points within `limit`, how many, the largest change of any point from the
+    first probe's (None when the probes use different numbers of points))."""
+    dev = "cpu"
+    ref_pos, ref_idx, (o0, m0) = probes[0]
+    ref_wp, ref_idx_wp = _vectors(ref_pos, dev), wp.array(np.asarray(ref_idx, np.int32), dtype=wp.int32, device=dev)
+    compare = all(len(idx) == len(ref_idx) for _, idx, _ in probes)
+    rows = []
+    for positions, idx, (o1, m1) in probes:
+        n = len(idx)
+        pos_wp = _vectors(positions, dev)
+        idx_wp = wp.array(np.asarray(idx, np.int32), dtype=wp.int32, device=dev)
+        bands = max(1, min(n // 65536, 4 * (threads or default_threads())))
+        cuts = np.linspace(0, n, bands + 1).astype(np.int64)
+        fixed = [ref_wp, ref_idx_wp, pos_wp, idx_wp, wp.vec3d(*o0), wp.mat33d(*np.ravel(m0)), wp.vec3d(*o1),
+                 wp.mat33d(*np.ravel(m1)), int(compare), wp.float64(limit)]
+
+        def band(k: int) -> np.ndarray:
+            out = wp.empty(9, dtype=wp.float64, device=dev)
+            wp.launch(band_light_fit, dim=1, inputs=[*fixed, int(cuts[k]), int(cuts[k + 1]), out], device=dev)
+            return out.numpy()
+
+        rows.extend(map_threads(band, range(bands), threads))
+    stats = np.stack(rows)
+    return (stats[:, 0:3].min(axis=0), stats[:, 3:6].max(axis=0), float(stats[:, 6].max()), int(stats[:, 7].sum()),
+            float(stats[:, 8].max()) if compare else None)

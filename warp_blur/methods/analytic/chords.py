@@ -86,6 +86,6 @@ def raise_chord_errors(proj: Projection, a: np.ndarray, b: np.ndarray, truth: np
         return
     assert err.dtype == np.float64 and err.flags.c_contiguous
     out = wp.array(err, dtype=wp.float64, device="cpu", copy=False)
-    fixed = [_vectors(a), _vectors(b), _vectors(truth), wp.array(np.asarray(idx, np.int32), dtype=wp.int32, device="cpu"),
-             wp.float64(f), *_camera(proj)]
+    index = wp.array(np.asarray(idx, np.int32), dtype=wp.int32, device="cpu")
+    fixed = [_vectors(a), _vectors(b), _vectors(truth), index, wp.float64(f), *_camera(proj)]
     launch_pixels(max_chord_error, len(idx), lambda first, _n: [*fixed, first, out], "cpu", threads)
