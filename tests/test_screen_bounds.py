@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from warp_blur.core.camera import Projection
+from warp_blur.raster import binning
 from warp_blur.raster.binning import BAND_SLABS, clipped_hull_boxes, entry_bounds, entry_corners, pass_all_slabs
 
 
@@ -142,9 +143,16 @@ def test_entry_bounds_match_numpy(ortho, seed):
     np.testing.assert_allclose(bands, want_bands, rtol=1e-6, atol=1e-4)
 
 
-def test_entries_at_one_knot_and_still_entries_keep_the_box_alone():
+@pytest.mark.parametrize("one_knot_kernel", [False, True])
+@pytest.mark.parametrize("ortho", [False, True])
+def test_entries_at_one_knot_and_still_entries_keep_the_box_alone(ortho, one_knot_kernel, monkeypatch):
+    """One knot for all entries (a sharp instant, a shadow map: NumPy projects each vertex once
+    for a few entries, the kernel runs at that knot alone for many) and still entries at several
+    knots."""
+    if one_knot_kernel:
+        monkeypatch.setattr(binning, "ONE_KNOT_KERNEL_ENTRIES", 0)
     rng = np.random.default_rng(7)
-    proj = Projection(orthographic=False, window=(-0.5, -0.5, 0.5, 0.5), near=0.1, far=50.0, width=64, height=48)
+    proj = Projection(orthographic=ortho, window=(-0.5, -0.5, 0.5, 0.5), near=0.1, far=50.0, width=64, height=48)
     positions, tri_vertices, entry_tri, _k0, _k1 = random_entries(rng, 200)
     for k0, k1 in [(np.full(len(entry_tri), 2, np.int32),) * 2,                       # one knot for all
                    (rng.integers(0, 4, len(entry_tri)).astype(np.int32),) * 2]:       # still, at several knots
