@@ -139,6 +139,17 @@ def _band_size(total: int, threads: int, bands_per_thread: int) -> int:
     return (total + num_bands - 1) // num_bands
 
 
+#: items below which a cheap per-item kernel (a vertex pass) runs as one launch: bands on the
+#: thread pool cost ~0.1 ms each, more than such a pass over a few thousand items
+CHEAP_PASS_SERIAL_ITEMS = 32768
+
+
+def cheap_pass_threads(items: int, threads: int | None) -> int | None:
+    """The threads for launch_pixels of a kernel doing little per item: 1 below
+    CHEAP_PASS_SERIAL_ITEMS, else `threads`."""
+    return 1 if items < CHEAP_PASS_SERIAL_ITEMS else threads
+
+
 def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], device: str,
                   threads: int | None = None, start: int = 0, bands_per_thread: int = 4,
                   max_band: int | None = None) -> None:

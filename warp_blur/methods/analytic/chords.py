@@ -15,7 +15,7 @@ import warp as wp
 
 from ...core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
 from ...core.camera import Projection
-from ...core.parallel import launch_pixels
+from ...core.parallel import cheap_pass_threads, launch_pixels
 
 
 @wp.func
@@ -74,7 +74,8 @@ def screen_path_px(proj: Projection, probes: list[np.ndarray], threads: int | No
     out = wp.array(total, dtype=wp.float64, device="cpu", copy=False)
     for a, b in zip(probes, probes[1:]):
         fixed = [_vectors(a), _vectors(b), *_camera(proj)]
-        launch_pixels(add_screen_steps, n, lambda first, _n: [*fixed, first, out], "cpu", threads)
+        launch_pixels(add_screen_steps, n, lambda first, _n: [*fixed, first, out], "cpu",
+                      cheap_pass_threads(n, threads))
     return total
 
 
@@ -88,4 +89,5 @@ def raise_chord_errors(proj: Projection, a: np.ndarray, b: np.ndarray, truth: np
     out = wp.array(err, dtype=wp.float64, device="cpu", copy=False)
     index = wp.array(np.asarray(idx, np.int32), dtype=wp.int32, device="cpu")
     fixed = [_vectors(a), _vectors(b), _vectors(truth), index, wp.float64(f), *_camera(proj)]
-    launch_pixels(max_chord_error, len(idx), lambda first, _n: [*fixed, first, out], "cpu", threads)
+    launch_pixels(max_chord_error, len(idx), lambda first, _n: [*fixed, first, out], "cpu",
+                  cheap_pass_threads(len(idx), threads))
