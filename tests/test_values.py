@@ -154,59 +154,49 @@ def test_every_method_drops_it(tmp_path, method):
     np.testing.assert_allclose(r.rgba, wb.render(_stage(tmp_path, "mesh_points", "hidden"), **kw).rgba, atol=1e-6)
 
 
+def _render_each(tmp_path, stages: dict[str, str]) -> dict:
+    """name -> the frame of each stage text (each in a folder of its own, warnings said anew)."""
+    results = {}
+    for name, text in stages.items():
+        (tmp_path / name).mkdir()
+        path = tmp_path / name / "stage.usda"
+        path.write_text(text)
+        log.reset()
+        results[name] = wb.render(str(path), frame=1.5, method="analytic", resolution=(48, 36), samples=4)
+    return results
+
+
 def test_normals_of_an_unknown_type_are_left_out_with_a_warning(tmp_path):
     """Normals are optional: the mesh renders as if it had none (flat facets), and says so."""
     target = TARGETS["mesh_indices"][0]
     target = target.replace("    {\n", '    {\n        uniform token subdivisionScheme = "none"\n', 1)
     normals = "        normal3f[] normals = [(0, 0, 1), (0, 0, 1), (0, 0, 1), (0.3, 0, 1)]\n"
-    images = {}
-    for name, text in (("bad", target.replace("    {\n", "    {\n" + normals.replace("normal3f[]", "nrm3f[]"), 1)),
-                       ("none", target), ("good", target.replace("    {\n", "    {\n" + normals, 1))):
-        (tmp_path / name).mkdir()
-        path = tmp_path / name / "stage.usda"
-        path.write_text(PRELUDE + text + "}\n")
-        log.reset()
-        result = wb.render(str(path), frame=1.5, method="analytic", resolution=(48, 36), samples=4)
-        images[name] = result.rgba
-        if name == "bad":
-            assert any("/World/Target.normals is authored with a type USD does not know" in w
-                       for w in result.stats["warnings"]), result.stats["warnings"]
-    np.testing.assert_array_equal(images["bad"], images["none"])
-    assert np.abs(images["good"] - images["none"]).max() > 1e-3   # (the normals would have shown)
+    with_normals = lambda line: PRELUDE + target.replace("    {\n", "    {\n" + line, 1) + "}\n"  # noqa: E731
+    r = _render_each(tmp_path, {"bad": with_normals(normals.replace("normal3f[]", "nrm3f[]")),
+                                "none": PRELUDE + target + "}\n", "good": with_normals(normals)})
+    assert any("/World/Target.normals is authored with a type USD does not know" in w
+               for w in r["bad"].stats["warnings"]), r["bad"].stats["warnings"]
+    np.testing.assert_array_equal(r["bad"].rgba, r["none"].rgba)
+    assert np.abs(r["good"].rgba - r["none"].rgba).max() > 1e-3   # (the normals would have shown)
 
 
-@pytest.mark.parametrize("attr,fallback", [("float inputs:radius = 0.25", "float inputs:radius = 0.5")])
-def test_a_light_size_of_an_unknown_type_takes_usds_fallback_with_a_warning(tmp_path, attr, fallback):
+def test_a_light_size_of_an_unknown_type_takes_usds_fallback_with_a_warning(tmp_path):
     """A sphere light's `flot inputs:radius` raised TypeError in the frame (float() of an
     unregistered value); now it is USD's fallback radius (0.5), as a non-finite one is."""
-    images = {}
-    for name, line in (("bad", attr.replace("float ", "flot ")), ("fallback", fallback)):
-        (tmp_path / name).mkdir()
-        path = tmp_path / name / "stage.usda"
-        path.write_text((PRELUDE + TARGETS["mesh_indices"][0] + "}\n").replace(attr, line))
-        log.reset()
-        result = wb.render(str(path), frame=1.5, method="analytic", resolution=(48, 36), samples=4)
-        images[name] = result.rgba
-        if name == "bad":
-            assert any("inputs:radius" in w and "fallback 0.5" in w for w in result.stats["warnings"])
-    assert images["fallback"][..., :3].max() > 0.05   # lit
-    np.testing.assert_array_equal(images["bad"], images["fallback"])
+    stage = PRELUDE + TARGETS["mesh_indices"][0] + "}\n"
+    r = _render_each(tmp_path, {"bad": stage.replace("float inputs:radius = 0.25", "flot inputs:radius = 0.25"),
+                                "fallback": stage.replace("float inputs:radius = 0.25", "float inputs:radius = 0.5")})
+    assert any("inputs:radius" in w and "fallback 0.5" in w for w in r["bad"].stats["warnings"])
+    assert r["fallback"].rgba[..., :3].max() > 0.05   # lit
+    np.testing.assert_array_equal(r["bad"].rgba, r["fallback"].rgba)
 
 
 def test_a_colour_primvar_of_an_unknown_type_is_ignored_with_a_warning(tmp_path):
     """displayColor of an unknown type: the mesh is USD's grey, as with none, and a warning says so."""
     target = TARGETS["mesh_indices"][0]
-    colour = "        color3f[] primvars:displayColor = [(1, 0, 0)]\n"
-    images = {}
-    for name, text in (("bad", target.replace("    {\n", "    {\n" + colour.replace("color3f[]", "colr3f[]"), 1)),
-                       ("none", target)):
-        (tmp_path / name).mkdir()
-        path = tmp_path / name / "stage.usda"
-        path.write_text(PRELUDE + text + "}\n")
-        log.reset()
-        result = wb.render(str(path), frame=1.5, method="analytic", resolution=(48, 36), samples=4)
-        images[name] = result.rgba
-        if name == "bad":
-            assert any("primvar displayColor is authored with a type USD does not know" in w
-                       for w in result.stats["warnings"]), result.stats["warnings"]
-    np.testing.assert_array_equal(images["bad"], images["none"])
+    colour = "        colr3f[] primvars:displayColor = [(1, 0, 0)]\n"
+    r = _render_each(tmp_path, {"bad": PRELUDE + target.replace("    {\n", "    {\n" + colour, 1) + "}\n",
+                                "none": PRELUDE + target + "}\n"})
+    assert any("primvar displayColor is authored with a type USD does not know" in w
+               for w in r["bad"].stats["warnings"]), r["bad"].stats["warnings"]
+    np.testing.assert_array_equal(r["bad"].rgba, r["none"].rgba)
