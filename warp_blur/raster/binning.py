@@ -68,8 +68,9 @@ def entry_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarr
             # the corners): a few NumPy calls, cheaper than the kernel's launches for a few entries
             box, keep, near = _one_knot_bounds(proj, positions[entry_k0[0]], tri_vertices, entry_tri, margin)
             return box, keep, slabs_out, near
-        k = int(entry_k0[0])   # else the kernel at that knot alone
-        positions, entry_k0, entry_k1 = positions[k:k + 1], *(np.zeros(len(entry_tri), np.int32),) * 2
+        k = int(entry_k0[0])   # else the kernel, given that knot alone
+        positions = positions[k:k + 1]
+        entry_k0 = entry_k1 = np.zeros(len(entry_tri), np.int32)
         slabs = False
     moving = bool((entry_k0 != entry_k1).any())
     near, box, flags, bands = screen_bounds(proj, positions, tri_vertices, entry_tri, entry_k0, entry_k1, margin,

@@ -68,7 +68,7 @@ def make_geometry(tables: TriangleTables, positions: np.ndarray, normals: np.nda
                   entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray,
                   velocities: np.ndarray | None = None) -> Geometry:
     """positions: (K+1, V, 3) camera space (float64 ok), or a (K+1, V) float32 wp.vec3 array on
-    the device, taken as it is (shadows/direct.face_positions); normals: (K+1, V, 3) or None;
+    the device, taken as it is (shadows/vertex_passes.face_positions); normals: (K+1, V, 3) or None;
     velocities: (V, 3) camera-space units per shutter of the vertices at a sharp instant, for
     shadow lookups in maps of other instants (None: static entries hold still)."""
     dev = tables.device

@@ -136,8 +136,9 @@ class FaceRasterizer:
             depth = wp.full(self.size * self.size, wp.inf, dtype=float, device=self.device)
         else:
             depth = wp.array(base.ravel(), dtype=float, device=self.device)
-        # (an orthographic face's cull test reads no depth; a perspective one's reads them in float64)
-        cull = self.cull_signs(placed.numpy() if face.ortho else (s.positions @ a.T + t)[None], [0], face)
+        # (the cull test reads depths only for a perspective face with closed instances, in float64)
+        reads_depths = not face.ortho and self.object_sign is not None and bool(self.object_sign.any())
+        cull = self.cull_signs((s.positions @ a.T + t)[None] if reads_depths else placed.numpy(), [0], face)
         num_tris = len(self.tri_vertices)
         launch_row_bands(splat_shadow_depth, len(tris), self.size,
                          lambda y0, y1: [view, geo, y0, y1, 1, cull, num_tris, 1, depth, self.no_flags, self.no_flags],

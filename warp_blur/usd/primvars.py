@@ -27,7 +27,7 @@ def corner_primvar(prim: Usd.Prim, name: str, time: Usd.TimeCode, tris: np.ndarr
     except (TypeError, ValueError):
         vals = None
         what = ("is authored with a type USD does not know" if unregistered(pv.GetAttr().Get(time))
-                else f"is not {width} numbers a value")
+                else f"does not hold {width} numbers a value")
         warn_once(f"primvar-type:{path}:{name}", f"{path}: primvar {name} {what}; ignored")
     if vals is None or len(vals) == 0:
         return None
