@@ -4,7 +4,7 @@ vertices) made ~1 s of a frame on the thread that builds the maps: which vertice
 light's frame (direct.still_triangles), the faces' float32 positions at each map instant
 (direct.FaceRasterizer), the scene's extreme vertices in 26 directions (casters.bounding_planes) and
 a distant light's fit and stillness (maps.ShadowMaps._plan). Each equals its NumPy form
-(tests/test_shadow_direct.py, tests/test_casters.py, tests/test_shadows.py)."""
+(tests/test_shadow_direct.py, tests/test_casters.py, tests/test_vertex_passes.py)."""
 
 from __future__ import annotations
 
