@@ -1,6 +1,7 @@
-"""methods/analytic/chords.py: the planner's screen paths and chord errors, as kernels, equal
-segments.screen_distance_px's NumPy passes (to float64 rounding: the kernel may fuse a multiply
-and an add), perspective and orthographic, with points behind the near plane and at the eye."""
+"""methods/analytic/chords.py: the planner's screen paths and chord errors, as kernels, equal the
+NumPy passes the planner made before (screen_distance_px below), to float64 rounding (the kernel
+may fuse a multiply and an add), perspective and orthographic, with points behind the near plane
+and at the eye."""
 
 from __future__ import annotations
 
@@ -9,7 +10,15 @@ import pytest
 
 from warp_blur.core.camera import Projection
 from warp_blur.methods.analytic.chords import raise_chord_errors, screen_path_px
-from warp_blur.methods.analytic.segments import screen_distance_px
+
+
+def screen_distance_px(proj: Projection, p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """segments.screen_distance_px as it was: screen distance (pixels) between camera-space points,
+    elementwise over (..., 3), points in front of the near plane measured at the near plane."""
+    if proj.orthographic:
+        return np.linalg.norm((p - q)[..., :2], axis=-1) * proj.pixels_per_unit
+    depth = np.maximum(np.minimum(-p[..., 2], -q[..., 2]), proj.near)
+    return np.linalg.norm(p - q, axis=-1) / depth * proj.pixels_per_unit
 
 
 def _points(rng, n):

@@ -19,6 +19,7 @@ import numpy as np
 import warp as wp
 
 from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
+from ..core.host_arrays import int32_array, vec3d_array, vec3i_array
 
 
 @wp.func
@@ -68,22 +69,6 @@ def back_facing_spans(positions: wp.array2d(dtype=wp.vec3d), tri_vertices: wp.ar
     back[i] = out
 
 
-def _vec3d(positions: np.ndarray) -> wp.array:
-    """positions (K+1, V, 3) float64 as a (K+1, V) vec3d array on the CPU (no copy when contiguous)."""
-    p = np.ascontiguousarray(positions, np.float64)
-    return wp.array(p, dtype=wp.vec3d, device="cpu", copy=False)
-
-
-def _int3(tri_vertices: np.ndarray) -> wp.array:
-    """tri_vertices (T, 3) as a vec3i array on the CPU."""
-    return wp.array(np.ascontiguousarray(tri_vertices, np.int32), dtype=wp.vec3i, device="cpu", copy=False)
-
-
-def _i32(values: np.ndarray) -> wp.array:
-    """values (N,) as an int32 array on the CPU."""
-    return wp.array(np.ascontiguousarray(values, np.int32), dtype=wp.int32, device="cpu")
-
-
 def instance_volume_sign(positions: np.ndarray, tri_vertices: np.ndarray, tri_object: np.ndarray,
                          closed: np.ndarray, near: float, far: float) -> np.ndarray:
     """(objects,) +1 / -1: the sign of each closed instance's signed volume, the same at every
@@ -101,7 +86,8 @@ def instance_volume_sign(positions: np.ndarray, tri_vertices: np.ndarray, tri_ob
     obj = tri_object[tris]
     dets = np.zeros((positions.shape[0], len(tris)))
     if len(tris):
-        wp.launch(triangle_dets, dim=dets.shape, inputs=[_vec3d(positions), _int3(tri_vertices), _i32(tris)],
+        wp.launch(triangle_dets, dim=dets.shape,
+                  inputs=[vec3d_array(positions), vec3i_array(tri_vertices), int32_array(tris)],
                   outputs=[wp.array(dets, dtype=wp.float64, device="cpu", copy=False)], device="cpu")
     for k in range(positions.shape[0]):
         vol = np.bincount(obj, weights=dets[k], minlength=n_obj)
@@ -130,8 +116,10 @@ def hidden_back_faces(positions: np.ndarray, tri_vertices: np.ndarray, tri_objec
     if len(cand) == 0:
         return out
     back = np.zeros(len(cand), np.int8)
-    wp.launch(back_facing_spans, dim=len(cand), inputs=[_vec3d(positions), _int3(tri_vertices), _i32(entry_tri[cand]),
-              _i32(entry_k0[cand]), _i32(entry_k1[cand]), wp.array(s[cand], dtype=wp.float64, device="cpu")],
+    wp.launch(back_facing_spans, dim=len(cand),
+              inputs=[vec3d_array(positions), vec3i_array(tri_vertices), int32_array(entry_tri[cand]),
+                      int32_array(entry_k0[cand]), int32_array(entry_k1[cand]),
+                      wp.array(s[cand], dtype=wp.float64, device="cpu")],
               outputs=[wp.array(back, dtype=wp.int8, device="cpu", copy=False)], device="cpu")
     out[cand] = back != 0
     return out

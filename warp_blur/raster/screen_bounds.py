@@ -15,6 +15,7 @@ import warp as wp
 
 from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
 from ..core.camera import Projection
+from ..core.host_arrays import int32_array, vec3d_array, vec3i_array
 from ..core.parallel import launch_pixels
 
 #: entry flags: some vertex is in front of the far plane and some beyond the near plane (else
@@ -139,11 +140,8 @@ def screen_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np.ndar
     if n == 0:
         return near, boxes, flags, (out_slabs if slabs else None)
     dev = "cpu"
-    pos = wp.array(np.ascontiguousarray(positions, np.float64), dtype=wp.vec3d, device=dev, copy=False)
-    tv = wp.array(np.ascontiguousarray(tri_vertices, np.int32), dtype=wp.vec3i, device=dev, copy=False)
-    et = wp.array(np.ascontiguousarray(entry_tri, np.int32), dtype=wp.int32, device=dev)
-    e0 = wp.array(np.ascontiguousarray(entry_k0, np.int32), dtype=wp.int32, device=dev)
-    e1 = wp.array(np.ascontiguousarray(entry_k1, np.int32), dtype=wp.int32, device=dev)
+    pos, tv = vec3d_array(positions, dev), vec3i_array(tri_vertices, dev)
+    et, e0, e1 = int32_array(entry_tri, dev), int32_array(entry_k0, dev), int32_array(entry_k1, dev)
     outs = [wp.array(near, dtype=wp.float64, device=dev, copy=False),
             wp.array(boxes, dtype=wp.vec4d, device=dev, copy=False),
             wp.array(flags, dtype=wp.int8, device=dev, copy=False),

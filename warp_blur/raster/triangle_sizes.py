@@ -9,6 +9,7 @@ import numpy as np
 import warp as wp
 
 from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
+from ..core.host_arrays import int32_array, vec3d_array, vec3i_array
 from ..core.parallel import launch_pixels
 
 
@@ -34,9 +35,7 @@ def triangles_at_least(positions: np.ndarray, tri_vertices: np.ndarray, tris: np
         return np.asarray(tris)[:0]
     out = np.empty(n, np.float64)
     dev = "cpu"
-    args = [wp.array(np.ascontiguousarray(positions, np.float64), dtype=wp.vec3d, device=dev, copy=False),
-            wp.array(np.ascontiguousarray(tri_vertices, np.int32), dtype=wp.vec3i, device=dev, copy=False),
-            wp.array(np.ascontiguousarray(tris, np.int32), dtype=wp.int32, device=dev)]
+    args = [vec3d_array(positions, dev), vec3i_array(tri_vertices, dev), int32_array(tris, dev)]
     result = wp.array(out, dtype=wp.float64, device=dev, copy=False)
     launch_pixels(triangle_area2, n, lambda first, _n: [*args, first, result], dev, threads)
     return np.asarray(tris)[out >= min_area2]

@@ -14,6 +14,7 @@ import numpy as np
 import warp as wp
 
 from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
+from ..core.host_arrays import int32_array, vec3d_array
 from ..core.parallel import cheap_pass_threads, default_threads, launch_pixels, map_threads
 from .layout import Sample
 
@@ -21,9 +22,11 @@ from .layout import Sample
 DIRECTIONS = np.array([d for d in itertools.product((-1.0, 0.0, 1.0), repeat=3) if any(d)])
 
 
-def _vectors(points: np.ndarray, device: str) -> wp.array:
-    """(N, 3) float64 points as a wp.vec3d array (the same memory on the CPU)."""
-    return wp.array(np.ascontiguousarray(points, np.float64), dtype=wp.vec3d, device=device, copy=False)
+def _band_cuts(n: int, threads: int | None) -> np.ndarray:
+    """Bounds (B + 1,) of the bands a reduction over n items runs in, one launch each on the pool:
+    one band under 64 k items, at most four per thread."""
+    bands = max(1, min(n // 65536, 4 * (threads or default_threads())))
+    return np.linspace(0, n, bands + 1).astype(np.int64)
 
 
 @wp.kernel(enable_backward=False)
@@ -59,9 +62,9 @@ def light_frame_changes(ref: np.ndarray, frame0: tuple[np.ndarray, np.ndarray],
     outputs = [wp.array(change, dtype=wp.float64, device=dev, copy=False),
                wp.array(size, dtype=wp.float64, device=dev, copy=False)]
     o0, m0 = frame0
-    ref_wp = _vectors(ref, dev)
+    ref_wp = vec3d_array(ref, dev)
     for positions, (o1, m1) in others:
-        fixed = [ref_wp, _vectors(positions, dev), wp.vec3d(*o0), wp.mat33d(*np.ravel(m0)), wp.vec3d(*o1),
+        fixed = [ref_wp, vec3d_array(positions, dev), wp.vec3d(*o0), wp.mat33d(*np.ravel(m0)), wp.vec3d(*o1),
                  wp.mat33d(*np.ravel(m1))]
         launch_pixels(light_local_change, n, lambda first, _n: [*fixed, first, *outputs], dev,
                       cheap_pass_threads(n, threads))
@@ -90,7 +93,7 @@ def face_positions(transforms: list[tuple[np.ndarray, np.ndarray]], samples: lis
         n = len(s.positions)
         if n == 0:
             continue
-        fixed = [_vectors(s.positions, device),
+        fixed = [vec3d_array(s.positions, device),
                  wp.mat33d(*np.asarray(a, np.float64).ravel()), wp.vec3d(*np.asarray(t, np.float64)), int(row)]
         launch_pixels(to_face_space, n, lambda first, _n: [*fixed, first, out], device, cheap_pass_threads(n, threads))
     return out
@@ -122,10 +125,9 @@ def support(points: np.ndarray, threads: int | None = None) -> tuple[np.ndarray,
     exact, so the sums are the same): bands of points on every core, without the (26, U)
     product, which cost 0.2 s a frame for 1000 particle spheres."""
     n, dev = len(points), "cpu"
-    pts = _vectors(points, dev)
+    pts = vec3d_array(points, dev)
     dirs = wp.array(DIRECTIONS, dtype=wp.vec3d, device=dev)
-    bands = max(1, min(n // 65536, 4 * (threads or default_threads())))
-    cuts = np.linspace(0, n, bands + 1).astype(np.int64)
+    cuts = _band_cuts(n, threads)
 
     def band(k: int) -> tuple[np.ndarray, np.ndarray]:
         best = wp.empty(len(DIRECTIONS), dtype=wp.float64, device=dev)
@@ -134,7 +136,7 @@ def support(points: np.ndarray, threads: int | None = None) -> tuple[np.ndarray,
                   device=dev)
         return best.numpy(), arg.numpy()
 
-    parts = map_threads(band, range(bands), threads)
+    parts = map_threads(band, range(len(cuts) - 1), threads)
     best = np.stack([b for b, _ in parts])
     arg = np.stack([a for _, a in parts])
     first = best.argmax(axis=0)                        # the earliest band holding the maximum
@@ -188,24 +190,27 @@ def light_fit(probes: list[tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.nd
     first probe's (None when the probes use different numbers of points))."""
     dev = "cpu"
     ref_pos, ref_idx, (o0, m0) = probes[0]
-    ref_wp, ref_idx_wp = _vectors(ref_pos, dev), wp.array(np.asarray(ref_idx, np.int32), dtype=wp.int32, device=dev)
+    indices: dict[int, wp.array] = {}   # each index array once (the probes mostly share one)
+
+    def index_of(idx: np.ndarray) -> wp.array:
+        if id(idx) not in indices:
+            indices[id(idx)] = int32_array(idx, dev)
+        return indices[id(idx)]
+
+    ref_wp, ref_idx_wp = vec3d_array(ref_pos, dev), index_of(ref_idx)
     compare = all(len(idx) == len(ref_idx) for _, idx, _ in probes)
     rows = []
     for positions, idx, (o1, m1) in probes:
-        n = len(idx)
-        pos_wp = _vectors(positions, dev)
-        idx_wp = wp.array(np.asarray(idx, np.int32), dtype=wp.int32, device=dev)
-        bands = max(1, min(n // 65536, 4 * (threads or default_threads())))
-        cuts = np.linspace(0, n, bands + 1).astype(np.int64)
-        fixed = [ref_wp, ref_idx_wp, pos_wp, idx_wp, wp.vec3d(*o0), wp.mat33d(*np.ravel(m0)), wp.vec3d(*o1),
-                 wp.mat33d(*np.ravel(m1)), int(compare), wp.float64(limit)]
+        cuts = _band_cuts(len(idx), threads)
+        fixed = [ref_wp, ref_idx_wp, vec3d_array(positions, dev), index_of(idx), wp.vec3d(*o0),
+                 wp.mat33d(*np.ravel(m0)), wp.vec3d(*o1), wp.mat33d(*np.ravel(m1)), int(compare), wp.float64(limit)]
 
         def band(k: int) -> np.ndarray:
             out = wp.empty(9, dtype=wp.float64, device=dev)
             wp.launch(band_light_fit, dim=1, inputs=[*fixed, int(cuts[k]), int(cuts[k + 1]), out], device=dev)
             return out.numpy()
 
-        rows.extend(map_threads(band, range(bands), threads))
+        rows.extend(map_threads(band, range(len(cuts) - 1), threads))
     stats = np.stack(rows)
     return (stats[:, 0:3].min(axis=0), stats[:, 3:6].max(axis=0), float(stats[:, 6].max()), int(stats[:, 7].sum()),
             float(stats[:, 8].max()) if compare else None)

@@ -22,6 +22,7 @@ import warp as wp
 from pxr import Usd, UsdGeom
 
 from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
+from ..core.host_arrays import vec3d_array
 from ..core.log import warn_once
 from .values import array_value, unregistered
 
@@ -222,7 +223,7 @@ class SmoothNormals:
 
     def __call__(self, positions: np.ndarray) -> np.ndarray:
         """(V, 3) float32 normals at positions (V, 3) float64."""
-        p = wp.array(np.ascontiguousarray(positions, np.float64), dtype=wp.vec3d, device="cpu", copy=False)
+        p = vec3d_array(positions)
         face = wp.empty(self.num_triangles, dtype=wp.vec3d, device="cpu")
         out = wp.empty(self.num_vertices, dtype=wp.vec3, device="cpu")
         if self.num_triangles:

@@ -5,7 +5,7 @@ probes (its error tolerance) and how far each candidate segment's chord strays f
 position at the check points. In NumPy each measurement was ~10 passes over (V, 3) arrays and a
 gathered copy of the positions; with 1000 particle spheres (640 k vertices) the planner took
 0.55 s of the frame, before the shadow maps could start. Here each is one pass that reads the
-snapshots' arrays in place. segments.screen_distance_px stays the NumPy form (the tests' oracle).
+snapshots' arrays in place. tests/test_chords.py keeps the NumPy form as the oracle.
 """
 
 from __future__ import annotations
@@ -15,13 +15,14 @@ import warp as wp
 
 from ...core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
 from ...core.camera import Projection
+from ...core.host_arrays import int32_array, vec3d_array
 from ...core.parallel import cheap_pass_threads, launch_pixels
 
 
 @wp.func
 def screen_px(p: wp.vec3d, q: wp.vec3d, ortho: int, near: wp.float64, ppu: wp.float64) -> wp.float64:
-    """Screen distance (pixels) between camera-space points p and q (segments.screen_distance_px:
-    perspective at the nearer depth, at least the near plane); inf where it is not a number."""
+    """Screen distance (pixels) between camera-space points p and q: perspective at the nearer
+    depth, at least the near plane (conservative); inf where it is not a number."""
     d = p - q
     dist = wp.float64(0.0)
     if ortho != 0:
@@ -59,10 +60,6 @@ def max_chord_error(a: wp.array(dtype=wp.vec3d), b: wp.array(dtype=wp.vec3d), tr
     err[i] = wp.max(err[i], screen_px(truth[v], approx, ortho, near, ppu))
 
 
-def _vectors(points: np.ndarray) -> wp.array:
-    return wp.array(np.ascontiguousarray(points, np.float64), dtype=wp.vec3d, device="cpu", copy=False)
-
-
 def _camera(proj: Projection) -> list:
     return [int(proj.orthographic), wp.float64(proj.near), wp.float64(proj.pixels_per_unit)]
 
@@ -73,7 +70,7 @@ def screen_path_px(proj: Projection, probes: list[np.ndarray], threads: int | No
     total = np.zeros(n, np.float64)
     out = wp.array(total, dtype=wp.float64, device="cpu", copy=False)
     for a, b in zip(probes, probes[1:]):
-        fixed = [_vectors(a), _vectors(b), *_camera(proj)]
+        fixed = [vec3d_array(a), vec3d_array(b), *_camera(proj)]
         launch_pixels(add_screen_steps, n, lambda first, _n: [*fixed, first, out], "cpu",
                       cheap_pass_threads(n, threads))
     return total
@@ -87,7 +84,6 @@ def raise_chord_errors(proj: Projection, a: np.ndarray, b: np.ndarray, truth: np
         return
     assert err.dtype == np.float64 and err.flags.c_contiguous
     out = wp.array(err, dtype=wp.float64, device="cpu", copy=False)
-    index = wp.array(np.asarray(idx, np.int32), dtype=wp.int32, device="cpu")
-    fixed = [_vectors(a), _vectors(b), _vectors(truth), index, wp.float64(f), *_camera(proj)]
+    fixed = [vec3d_array(a), vec3d_array(b), vec3d_array(truth), int32_array(idx), wp.float64(f), *_camera(proj)]
     launch_pixels(max_chord_error, len(idx), lambda first, _n: [*fixed, first, out], "cpu",
                   cheap_pass_threads(len(idx), threads))

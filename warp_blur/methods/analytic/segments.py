@@ -77,23 +77,6 @@ class MotionPlan:
         return self.positions.shape[0] - 1
 
 
-def screen_distance_px(proj: Projection, p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Screen distance (pixels) between camera-space points, elementwise over (..., 3).
-
-    Points in front of the near plane are measured as if at the near plane (conservative)."""
-    if proj.orthographic:
-        return np.linalg.norm((p - q)[..., :2], axis=-1) * proj.pixels_per_unit
-    depth = np.maximum(np.minimum(-p[..., 2], -q[..., 2]), proj.near)
-    return np.linalg.norm(p - q, axis=-1) / depth * proj.pixels_per_unit
-
-
-def screen_error_px(proj: Projection, truth: np.ndarray, approx: np.ndarray) -> float:
-    """Largest screen distance (pixels) between true and approximated camera-space points."""
-    if truth.size == 0:
-        return 0.0
-    return float(screen_distance_px(proj, truth, approx).max())
-
-
 # Light table column groups (lights.py) that must follow the knots linearly, each within
 # LIGHT_TOLERANCE of its own size: radiance, position, the three axes, radius.
 LIGHT_GROUPS = ((1, 4), (4, 7), (7, 10), (10, 13), (13, 16), (16, 17))
