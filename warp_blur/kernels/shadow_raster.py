@@ -119,27 +119,18 @@ def clipped_box(view: View, a: wp.vec3, b: wp.vec3, c: wp.vec3, margin: float) -
 
 
 @wp.kernel(enable_backward=False)
-def splat_shadow_depth(view: View, geo: Geometry, row_lo: int, row_hi: int, stride: int,
-                       cull: wp.array(dtype=float), num_tris: int, block: int,
-                       # in/out
-                       depth: wp.array(dtype=float), touched: wp.array(dtype=wp.uint8),
-                       occupied: wp.array(dtype=wp.uint8)):
-    """depth[texel * stride + k] = min(that, entry's depth there) for entry tid (static, in face
-    space, at instant k = its entry_k0) over the texel centres of its box within rows [row_lo,
-    row_hi) (the pairs the texel walk of render_shadow_texels tests, with the same hit test): few,
-    small triangles over a base map cost their own area, not the map's. stride 1 with k 0 is one
-    map; stride B renders B instants of a face at once, each texel's instants side by side (the
-    layout lookups read); touched (when not empty) gets 1 at every texel an entry covers (over a
-    face filled with the same base at every instant, texels never touched are the same at every
-    instant); occupied (when not empty, (ceil(S / block)²,)) gets 1 at every block × block texel
-    block where an entry writes a depth (the occupancy shadows/free_entries.py tests, found here
-    rather than by reading the maps again). The box is computed here (clipped_box), so a face
-    costs the host no binning.
-    Launches for disjoint row bands may run in parallel. cull (when not empty), at instant k and
-    triangle t [k * num_tris + t]: the sign of the triangle's closed instance where the light is
-    outside it (0: keep), so a back face of it (facing with that sign) is left out: it never holds
-    a depth (shadows/direct.py, FaceRasterizer.cull_signs)."""
-    e = wp.tid()
+def splat_boxes(view: View, geo: Geometry, cull: wp.array(dtype=float), num_tris: int, first: int,
+                # output
+                boxes: wp.array(dtype=wp.vec4i)):
+    """boxes[e] for entry e = first + tid (static, in face space, at instant entry_k0): the texel
+    box (x0, y0, x1, y1), inclusive, whose centres its hit test may pass in splat_shadow_depth,
+    clamped to the face; x0 > x1 when it can hold no depth there (outside the face or the clipping
+    range, or a back face of a closed instance that the light is outside: cull, when not empty,
+    at instant k and triangle t [k * num_tris + t] is that instance's sign, 0 to keep; see
+    shadows/direct.py, FaceRasterizer.cull_signs). Found once per entry rather than once per row
+    band: over many small triangles the set-up, not the texels, is a splat's cost."""
+    e = first + wp.tid()
+    empty = wp.vec4i(1, 1, 0, 0)
     vi = geo.tri_vertices[geo.entry_tri[e]]
     a = entry_vertex(geo, e, vi[0], 0.0)
     b = entry_vertex(geo, e, vi[1], 0.0)
@@ -154,19 +145,56 @@ def splat_shadow_depth(view: View, geo: Geometry, row_lo: int, row_hi: int, stri
             else:
                 facing = wp.dot(a, wp.cross(b, c))
             if facing * sign > 0.0:
+                boxes[e] = empty
                 return
     box = clipped_box(view, a, b, c, 1.0)
     if not (box[0] <= box[2]):
+        boxes[e] = empty
         return
-    blocks_x = (view.width + block - 1) // block   # occupied's row length
     # clamped before the conversion to int (a vertex just in front of the eye projects far out)
     limit = float(4 * (view.width + view.height))
     x0 = wp.max(int(wp.ceil(wp.clamp(box[0], -limit, limit) - 0.5)), 0)
     x1 = wp.min(int(wp.floor(wp.clamp(box[2], -limit, limit) - 0.5)), view.width - 1)
-    y0 = wp.max(int(wp.ceil(wp.clamp(box[1], -limit, limit) - 0.5)), row_lo)
-    y1 = wp.min(int(wp.floor(wp.clamp(box[3], -limit, limit) - 0.5)), wp.min(view.height, row_hi) - 1)
+    y0 = wp.max(int(wp.ceil(wp.clamp(box[1], -limit, limit) - 0.5)), 0)
+    y1 = wp.min(int(wp.floor(wp.clamp(box[3], -limit, limit) - 0.5)), view.height - 1)
     if x0 > x1 or y0 > y1:
+        boxes[e] = empty
         return
+    boxes[e] = wp.vec4i(x0, y0, x1, y1)
+
+
+@wp.kernel(enable_backward=False)
+def splat_shadow_depth(view: View, geo: Geometry, boxes: wp.array(dtype=wp.vec4i), row_lo: int, row_hi: int,
+                       stride: int, block: int,
+                       # in/out
+                       depth: wp.array(dtype=float), touched: wp.array(dtype=wp.uint8),
+                       occupied: wp.array(dtype=wp.uint8)):
+    """depth[texel * stride + k] = min(that, entry's depth there) for entry tid (static, in face
+    space, at instant k = its entry_k0) over the texel centres of its box (splat_boxes) within
+    rows [row_lo, row_hi) (the pairs the texel walk of render_shadow_texels tests, with the same
+    hit test): few, small triangles over a base map cost their own area, not the map's. stride 1
+    with k 0 is one map; stride B renders B instants of a face at once, each texel's instants side
+    by side (the layout lookups read); touched (when not empty) gets 1 at every texel an entry
+    covers (over a face filled with the same base at every instant, texels never touched are the
+    same at every instant); occupied (when not empty, (ceil(S / block)²,)) gets 1 at every
+    block × block texel block where an entry writes a depth (the occupancy shadows/free_entries.py
+    tests, found here rather than by reading the maps again). The box is found on the device
+    (splat_boxes), so a face costs the host no binning.
+    Launches for disjoint row bands may run in parallel: an entry outside a band's rows costs
+    that band a read of its box."""
+    e = wp.tid()
+    box = boxes[e]
+    y0 = wp.max(box[1], row_lo)
+    y1 = wp.min(box[3], row_hi - 1)
+    if box[0] > box[2] or y0 > y1:
+        return
+    x0 = box[0]
+    x1 = box[2]
+    vi = geo.tri_vertices[geo.entry_tri[e]]
+    a = entry_vertex(geo, e, vi[0], 0.0)
+    b = entry_vertex(geo, e, vi[1], 0.0)
+    c = entry_vertex(geo, e, vi[2], 0.0)
+    blocks_x = (view.width + block - 1) // block   # occupied's row length
     # a perspective face's rays all start at the eye (the origin): the edges' cross products
     # are the triangle's own, computed once (the same values intersect_triangle computes)
     c_ab = edge_cross(a, b, vi[0], vi[1])

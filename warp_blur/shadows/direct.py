@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..core.parallel import launch_pixels, launch_row_bands
-from ..kernels.shadow_raster import render_shadow_texels, splat_shadow_depth
+from ..core.parallel import cheap_pass_threads, launch_pixels, launch_row_bands
+from ..kernels.shadow_raster import render_shadow_texels, splat_boxes, splat_shadow_depth
 from ..raster.binning import TILE_SIZE, bin_entries, entry_pixel_bounds
 from ..kernels.kernel_types import Geometry
 from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_view
@@ -139,10 +139,7 @@ class FaceRasterizer:
         # (the cull test reads depths only for a perspective face with closed instances, in float64)
         reads_depths = not face.ortho and self.object_sign is not None and bool(self.object_sign.any())
         cull = self.cull_signs((s.positions @ a.T + t)[None] if reads_depths else placed.numpy(), [0], face)
-        num_tris = len(self.tri_vertices)
-        launch_row_bands(splat_shadow_depth, len(tris), self.size,
-                         lambda y0, y1: [view, geo, y0, y1, 1, cull, num_tris, 1, depth, self.no_flags, self.no_flags],
-                         self.device, threads)
+        self._splat(view, geo, cull, 1, 1, depth, self.no_flags, self.no_flags, threads)
         return depth.numpy().reshape(self.size, self.size)
 
     def instants_geometry(self, transforms: list[tuple[np.ndarray, np.ndarray]], samples: list[Sample],
@@ -177,10 +174,22 @@ class FaceRasterizer:
         geo, cull = prepared
         view = make_view(face.projection(self.size), 1, None, TILE_SIZE)
         view.near = face.near
+        self._splat(view, geo, cull, times, block, target, touched, occupied, threads)
+
+    def _splat(self, view, geo: Geometry, cull: wp.array, stride: int, block: int, target: wp.array,
+               touched: wp.array, occupied: wp.array, threads: int | None) -> None:
+        """splat_shadow_depth of geo's entries into target over row bands in parallel, each
+        entry's texel box found once first (splat_boxes, over bands of entries)."""
+        entries = geo.entry_tri.shape[0]
+        if entries == 0:
+            return
+        boxes = wp.empty(entries, dtype=wp.vec4i, device=self.device)
         num_tris = len(self.tri_vertices)
-        launch_row_bands(splat_shadow_depth, geo.entry_tri.shape[0], self.size,
-                         lambda y0, y1: [view, geo, y0, y1, times, cull, num_tris, block, target, touched,
-                                         occupied], self.device, threads)
+        launch_pixels(splat_boxes, entries, lambda first, _n: [view, geo, cull, num_tris, first, boxes], self.device,
+                      cheap_pass_threads(entries, threads))
+        launch_row_bands(splat_shadow_depth, entries, self.size,
+                         lambda y0, y1: [view, geo, boxes, y0, y1, stride, block, target, touched, occupied],
+                         self.device, threads)
 
     def gather(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, threads: int | None,
                subset: np.ndarray | None = None):
