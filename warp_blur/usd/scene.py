@@ -415,9 +415,11 @@ class Scene:
         self.tri_fractional = self.materials.fractional()[self.tri_material] if len(self.tri_material) \
             else np.zeros(0, bool)
         read = ~np.isnan(alpha[:, 0])
-        alpha = np.where(read[:, None], alpha, 1.0).astype(np.float32)
-        threshold = tri_cut[:, 1]
-        primvar_test = read & ((threshold > 0) | (alpha.min(axis=1) < 1.0))
+        primvar_test = np.zeros(len(read), bool)
+        if read.any():   # (a frame of a million triangles without an opacity primvar skips these passes)
+            alpha = np.where(read[:, None], alpha, 1.0).astype(np.float32)
+            threshold = tri_cut[:, 1]
+            primvar_test = read & ((threshold > 0) | (alpha.min(axis=1) < 1.0))
         if primvar_test.any():
             tri_cut = tri_cut.copy()
             tri_cut[primvar_test, 0] = CODE_CORNER_OPACITY
