@@ -20,6 +20,7 @@ import warp as wp
 
 from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
 from ..core.host_arrays import int32_array, vec3d_array, vec3i_array
+from ..core.parallel import cheap_pass_threads, launch_pixels
 
 
 @wp.func
@@ -31,13 +32,15 @@ def det3(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d) -> wp.float64:
 
 @wp.kernel(enable_backward=False)
 def triangle_dets(positions: wp.array2d(dtype=wp.vec3d), tri_vertices: wp.array(dtype=wp.vec3i),
-                  tris: wp.array(dtype=wp.int32),
+                  tris: wp.array(dtype=wp.int32), first: int,
                   # output
                   dets: wp.array2d(dtype=wp.float64)):
-    """dets[k, i] = det[a, b, c] of triangle tris[i]'s vertices at knot k (positions (K+1, V))."""
-    k, i = wp.tid()
+    """dets[k, i] = det[a, b, c] of triangle tris[i]'s vertices at every knot k (positions
+    (K+1, V)), for i = first + tid (launched over bands of triangles)."""
+    i = first + wp.tid()
     vi = tri_vertices[tris[i]]
-    dets[k, i] = det3(positions[k, vi[0]], positions[k, vi[1]], positions[k, vi[2]])
+    for k in range(positions.shape[0]):
+        dets[k, i] = det3(positions[k, vi[0]], positions[k, vi[1]], positions[k, vi[2]])
 
 
 @wp.kernel(enable_backward=False)
@@ -86,9 +89,12 @@ def instance_volume_sign(positions: np.ndarray, tri_vertices: np.ndarray, tri_ob
     obj = tri_object[tris]
     dets = np.zeros((positions.shape[0], len(tris)))
     if len(tris):
-        wp.launch(triangle_dets, dim=dets.shape,
-                  inputs=[vec3d_array(positions), vec3i_array(tri_vertices), int32_array(tris)],
-                  outputs=[wp.array(dets, dtype=wp.float64, device="cpu", copy=False)], device="cpu")
+        inputs = [vec3d_array(positions), vec3i_array(tri_vertices), int32_array(tris)]
+        out = wp.array(dets, dtype=wp.float64, device="cpu", copy=False)
+        # (bands on every core for a field of instances; one launch for the few triangles of an
+        # accumulation instant, which calls this at every instant)
+        launch_pixels(triangle_dets, len(tris), lambda first, _n: [*inputs, first, out], "cpu",
+                      cheap_pass_threads(len(tris), None))
     for k in range(positions.shape[0]):
         vol = np.bincount(obj, weights=dets[k], minlength=n_obj)
         s = np.sign(vol)
