@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from ..core.parallel import cheap_pass_threads, launch_pixels
+
 #: slack (pixels) the slab test keeps on the sample kernels' side of float32 rounding (box_rejects)
 SLAB_SLACK = wp.constant(wp.float64(1.0e-3))
 
@@ -48,10 +50,12 @@ def slabs_reach(bands: wp.array3d(dtype=wp.float32), e: int, tx: int, ty: int, t
 @wp.kernel(enable_backward=False)
 def count_entry_tiles(order: wp.array(dtype=int), boxes: wp.array2d(dtype=wp.float64),
                       bands: wp.array3d(dtype=wp.float32), tile_size: int, tiles_x: int, tiles_y: int,
+                      first: int,
                       # output
                       counts: wp.array(dtype=int)):
-    """counts[i]: how many tiles list entry order[i] (its box's tiles its slabs reach)."""
-    i = wp.tid()
+    """counts[i]: how many tiles list entry order[i] (its box's tiles its slabs reach), for
+    i = first + tid (launched over bands of entries)."""
+    i = first + wp.tid()
     e = order[i]
     r = tile_range(boxes, e, tile_size, tiles_x, tiles_y)
     n = int(0)
@@ -65,11 +69,12 @@ def count_entry_tiles(order: wp.array(dtype=int), boxes: wp.array2d(dtype=wp.flo
 @wp.kernel(enable_backward=False)
 def write_entry_tiles(order: wp.array(dtype=int), boxes: wp.array2d(dtype=wp.float64),
                       bands: wp.array3d(dtype=wp.float32), tile_size: int, tiles_x: int, tiles_y: int,
-                      starts: wp.array(dtype=int),
+                      starts: wp.array(dtype=int), first: int,
                       # output
                       pair_tiles: wp.array(dtype=int)):
-    """pair_tiles[starts[i]:starts[i + 1]]: the tiles that list entry order[i], row by row."""
-    i = wp.tid()
+    """pair_tiles[starts[i]:starts[i + 1]]: the tiles that list entry order[i], row by row, for
+    i = first + tid (launched over bands of entries)."""
+    i = first + wp.tid()
     e = order[i]
     r = tile_range(boxes, e, tile_size, tiles_x, tiles_y)
     k = starts[i]
@@ -115,8 +120,12 @@ def tile_lists(boxes: np.ndarray, order: np.ndarray, bands: np.ndarray, tile_siz
     boxes_w = wp.array(boxes_np, dtype=wp.float64, device=dev, copy=False)
     bands_w = wp.array(bands_np, dtype=wp.float32, device=dev, copy=False)
     counts = wp.empty(n, dtype=int, device=dev)
-    wp.launch(count_entry_tiles, dim=n, inputs=[order_w, boxes_w, bands_w, tile_size, tiles_x, tiles_y],
-              outputs=[counts], device=dev)
+    # (each entry writes only its own count and pairs: bands of entries run on every core, and a
+    # few thousand entries, as an accumulation instant bins, in one launch)
+    threads = cheap_pass_threads(n, None)
+    launch_pixels(count_entry_tiles, n,
+                  lambda first, _n: [order_w, boxes_w, bands_w, tile_size, tiles_x, tiles_y, first, counts], dev,
+                  threads)
     starts_np = np.zeros(n + 1, np.int64)
     np.cumsum(counts.numpy(), out=starts_np[1:])
     total = int(starts_np[-1])
@@ -125,8 +134,9 @@ def tile_lists(boxes: np.ndarray, order: np.ndarray, bands: np.ndarray, tile_siz
     starts32 = starts_np.astype(np.int32)   # kept alive here: the Warp array reads it in place
     starts = wp.array(starts32, dtype=int, device=dev, copy=False)
     pair_tiles = wp.empty(max(total, 1), dtype=int, device=dev)
-    wp.launch(write_entry_tiles, dim=n, inputs=[order_w, boxes_w, bands_w, tile_size, tiles_x, tiles_y, starts],
-              outputs=[pair_tiles], device=dev)
+    launch_pixels(write_entry_tiles, n,
+                  lambda first, _n: [order_w, boxes_w, bands_w, tile_size, tiles_x, tiles_y, starts, first,
+                                     pair_tiles], dev, threads)
     per_tile = np.bincount(pair_tiles.numpy()[:total], minlength=num_tiles)
     offsets = np.zeros(num_tiles + 1, np.int64)
     np.cumsum(per_tile, out=offsets[1:])
