@@ -280,6 +280,17 @@ def test_smooth_normals_equal_numpys_bit_for_bit():
         np.testing.assert_array_equal(vertex_normals(positions, tris), _numpy_vertex_normals(positions, tris))
 
 
+def test_smooth_normals_of_a_large_mesh_over_bands_equal_numpys():
+    """Past CHEAP_PASS_SERIAL_ITEMS triangles and vertices the two kernels run over bands on every
+    core; each band writes its own triangles and vertices, so the normals stay NumPy's exactly."""
+    from warp_blur.core.parallel import CHEAP_PASS_SERIAL_ITEMS
+    rng = np.random.default_rng(9)
+    v = 2 * CHEAP_PASS_SERIAL_ITEMS + 17
+    tris = rng.integers(0, v, (3 * CHEAP_PASS_SERIAL_ITEMS + 5, 3)).astype(np.int32)
+    positions = rng.normal(size=(v, 3)) * 50.0 + 1.0e4
+    np.testing.assert_array_equal(vertex_normals(positions, tris), _numpy_vertex_normals(positions, tris))
+
+
 def test_smooth_normals_are_kept_per_topology():
     """A topology seen again gets its kept corner lists; another one (same size) does not."""
     rng = np.random.default_rng(8)

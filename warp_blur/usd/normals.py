@@ -23,6 +23,7 @@ from pxr import Usd, UsdGeom
 
 from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
 from ..core.host_arrays import vec3d_array
+from ..core.parallel import cheap_pass_threads, launch_pixels
 from ..core.log import warn_once
 from .values import array_value, unregistered
 
@@ -160,11 +161,12 @@ def transform_normals(normals: np.ndarray, cam_from_local: np.ndarray) -> np.nda
 
 
 @wp.kernel(enable_backward=False)
-def _face_normals(positions: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.vec3i),
+def _face_normals(positions: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.vec3i), first: int,
                   # output
                   out: wp.array(dtype=wp.vec3d)):
-    """out[t] = (b - a) × (c - a) of triangle t, component by component as np.cross computes it."""
-    t = wp.tid()
+    """out[t] = (b - a) × (c - a) of triangle t = first + tid, component by component as np.cross
+    computes it."""
+    t = first + wp.tid()
     v = tris[t]
     a = positions[v[0]]
     e = positions[v[1]] - a
@@ -180,12 +182,13 @@ def _face_normals(positions: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.v
 
 @wp.kernel(enable_backward=False)
 def _vertex_sums(face_normals: wp.array(dtype=wp.vec3d), offsets: wp.array(dtype=wp.int32),
-                 faces: wp.array(dtype=wp.int32),
+                 faces: wp.array(dtype=wp.int32), first: int,
                  # output
                  out: wp.array(dtype=wp.vec3)):
-    """out[v] = the normalised sum of the face normals of vertex v's corners faces[offsets[v]:
-    offsets[v + 1]], added in that order (np.bincount's), in float64, rounded to float32."""
-    v = wp.tid()
+    """out[v] = the normalised sum of the face normals of vertex v = first + tid's corners
+    faces[offsets[v]:offsets[v + 1]], added in that order (np.bincount's), in float64, rounded to
+    float32."""
+    v = first + wp.tid()
     x = wp.float64(0.0)
     y = wp.float64(0.0)
     z = wp.float64(0.0)
@@ -226,10 +229,11 @@ class SmoothNormals:
         p = vec3d_array(positions)
         face = wp.empty(self.num_triangles, dtype=wp.vec3d, device="cpu")
         out = wp.empty(self.num_vertices, dtype=wp.vec3, device="cpu")
-        if self.num_triangles:
-            wp.launch(_face_normals, dim=self.num_triangles, inputs=[p, self._tris], outputs=[face], device="cpu")
-        wp.launch(_vertex_sums, dim=self.num_vertices, inputs=[face, self._offsets, self._faces], outputs=[out],
-                  device="cpu")
+        # (bands on every core for a field of instances, one launch for a few thousand triangles)
+        launch_pixels(_face_normals, self.num_triangles, lambda first, _n: [p, self._tris, first, face], "cpu",
+                      cheap_pass_threads(self.num_triangles, None))
+        launch_pixels(_vertex_sums, self.num_vertices, lambda first, _n: [face, self._offsets, self._faces, first, out],
+                      "cpu", cheap_pass_threads(self.num_vertices, None))
         return out.numpy()
 
 
