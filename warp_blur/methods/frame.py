@@ -302,12 +302,14 @@ class FrameContext:
 
     def static_geometry(self, snapshots: list[Snapshot], knot: int,
                         triangles: np.ndarray | None = None,
-                        velocities: np.ndarray | None = None, cull: bool = True) -> tuple[Geometry, TileBins]:
+                        velocities: np.ndarray | None = None, cull: bool = True,
+                        shaded: bool = True) -> tuple[Geometry, TileBins]:
         """Geometry with all snapshots as knots, and static entries at `knot` for visible triangles
         (of `triangles`, a (T,) mask, when given), moving with `velocities` for shadow lookups;
-        back faces that cannot show dropped unless cull is False (raster/culling.py)."""
+        back faces that cannot show dropped unless cull is False (raster/culling.py). Without
+        `shaded` it holds no normals (depth and motion only: the snapshots need none)."""
         positions = np.stack([s.positions for s in snapshots])
-        normals = np.stack([s.normals for s in snapshots]) if self.scene.any_smooth else None
+        normals = np.stack([s.normals for s in snapshots]) if self.scene.any_smooth and shaded else None
         tris, dropped = self.front_triangles(snapshots[knot], triangles, cull)
         k = np.full(len(tris), knot, np.int32)
         self.counters["back_faces_dropped"] = dropped
@@ -520,10 +522,11 @@ class FrameContext:
         return run
 
     def depth_motion(self, snapshots: list[Snapshot] | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Z (H, W) and motion (H, W, 2) AOVs of the surface seen at the shutter centre."""
+        """Z (H, W) and motion (H, W, 2) AOVs of the surface seen at the shutter centre. Positions
+        only: the snapshots static_frame's probes took are reused, none needs normals."""
         if snapshots is None:
-            snapshots = [self.snapshot(0.0), self.snapshot(0.5), self.snapshot(1.0)]
-        geo, bins = self.static_geometry(snapshots, 1)
+            snapshots = [self.probed_snapshot(u, with_normals=False) for u in (0.0, 0.5, 1.0)]
+        geo, bins = self.static_geometry(snapshots, 1, shaded=False)
         view, b = self.view(bins), make_bins(bins, self.device)
         depth = wp.zeros(self.num_pixels, dtype=float, device=self.device)
         motion = wp.zeros(self.num_pixels, dtype=wp.vec2, device=self.device)
