@@ -23,6 +23,7 @@ import numpy as np
 import warp as wp
 
 from ..core.parallel import run_prepared
+from ..core.rows import all_corners, same_rows
 from ..kernels.raster import INSTANT_CACHE_SLOTS
 from ..raster.binning import SAMPLE_MARGIN_PX, TILE_SIZE, entry_pixel_bounds, tile_mask_pixels
 from .frame import FrameContext
@@ -108,14 +109,14 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
             return None
         lights_still &= np.array_equal(snap.lights, first.lights)
         camera_still &= np.array_equal(snap.cam_from_world, first.cam_from_world)
-        same_v = (snap.positions == first.positions).all(axis=1)
+        same_v = same_rows(snap.positions, first.positions)
         same_t = visible(snap) == visible(first)
         still_v &= same_v
         same_vis &= same_t
-        differ = ~(same_t & same_v[scene.tri_vertices].all(axis=1))
+        differ = ~(same_t & all_corners(same_v, scene.tri_vertices))
         mark(snap.positions, np.nonzero(differ & visible(snap))[0])
     steady &= lights_still
-    still = same_vis & still_v[scene.tri_vertices].all(axis=1) & ~scene.tri_fractional
+    still = same_vis & all_corners(still_v, scene.tri_vertices) & ~scene.tri_fractional
     if not still.any():
         return None
     mark(first.positions, np.nonzero(~still & visible(first))[0])

@@ -21,6 +21,7 @@ import warp as wp
 from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
 from ..core.host_arrays import int32_array, vec3d_array, vec3i_array
 from ..core.parallel import cheap_pass_threads, launch_pixels
+from ..core.rows import all_corners
 
 
 @wp.func
@@ -81,7 +82,7 @@ def instance_volume_sign(positions: np.ndarray, tri_vertices: np.ndarray, tri_ob
     ok = np.zeros(n_obj, bool)
     ok[tri_object[closed]] = True
     depth = -positions[..., 2]
-    inside = ((depth.min(axis=0) >= near) & (depth.max(axis=0) <= far))[tri_vertices].all(axis=1)   # (T,)
+    inside = all_corners((depth.min(axis=0) >= near) & (depth.max(axis=0) <= far), tri_vertices)   # (T,)
     ok[tri_object[~(inside & closed)]] = False   # an instance with any open or clipped triangle
     sign = np.zeros(n_obj)
     first = None

@@ -10,6 +10,7 @@ import numpy as np
 import warp as wp
 
 from ..core.parallel import cheap_pass_threads, launch_pixels, launch_row_bands
+from ..core.rows import all_corners
 from ..kernels.shadow_raster import render_shadow_texels, splat_boxes, splat_shadow_depth
 from ..raster.binning import TILE_SIZE, bin_entries, entry_pixel_bounds
 from ..kernels.kernel_types import Geometry
@@ -44,7 +45,7 @@ def still_triangles(probes: list[Sample], row: int, tri_vertices: np.ndarray, th
             still_t &= p.tri_visible == ref.tri_visible
     tol = STILL_TOL * (float(size.max(initial=0.0)) + 1.0)
     still_v = change <= tol
-    return still_t & still_v[tri_vertices].all(axis=1) if len(tri_vertices) else still_t
+    return still_t & all_corners(still_v, tri_vertices) if len(tri_vertices) else still_t
 
 
 class FaceRasterizer:

@@ -29,6 +29,7 @@ from ..raster.device_data import TriangleTables
 from ..usd.lights import DISK, DISTANT, RECT, SPHERE
 from ..core.log import warn_once
 from ..core.parallel import default_threads, map_threads
+from ..core.rows import any_corner
 from ..kernels.shadow_lookup import FACE_WIDTH
 from ..raster.culling import instance_volume_sign
 from .casters import light_casters, used_vertex_index
@@ -317,7 +318,7 @@ class ShadowMaps(KeyWarping):
         with np.errstate(divide="ignore", invalid="ignore"):
             inside = (depth > face.near) & (q[:, 0] >= x0 * depth) & (q[:, 0] <= x1 * depth) \
                 & (q[:, 1] >= y0 * depth) & (q[:, 1] <= y1 * depth)
-        return int(inside[self.tri_vertices].any(axis=1).sum()) if len(self.tri_vertices) else 0
+        return int(np.count_nonzero(any_corner(inside, self.tri_vertices)))
 
     def _render_slot(self, lay: LightLayout, fi: int, m: int, items: list[tuple[int, float]],
                      laid: TexelMajorLayout, threads: int | None) -> None:

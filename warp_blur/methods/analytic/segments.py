@@ -23,6 +23,7 @@ from pxr import UsdGeom
 from ...core.camera import Projection
 from ...core.memory import check_entries_fit
 from ...core.parallel import Background, default_threads
+from ...core.rows import all_corners, same_rows
 from ...raster.culling import hidden_back_faces
 from .chords import raise_chord_errors, screen_path_px
 from ..frame import MOTION_PROBES
@@ -124,7 +125,7 @@ def plan_entries(tri_unit: np.ndarray, tri_vertices: np.ndarray, seg_of_unit: np
     (T, 3), seg_of_unit (U,) K per unit, vis (knots, T) bool, vertex_static (V,) bool or None."""
     tris = np.arange(len(tri_unit), dtype=np.int64)
     k_of = seg_of_unit[tri_unit] if len(tri_unit) else np.zeros(0, np.int64)
-    still = np.zeros(len(tris), bool) if vertex_static is None else vertex_static[tri_vertices].all(axis=1)
+    still = np.zeros(len(tris), bool) if vertex_static is None else all_corners(vertex_static, tri_vertices)
     fixed = (k_of == 0) | still
     fixed_t = tris[fixed & vis[0]]
     moving_t = tris[~fixed]
@@ -174,7 +175,7 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
         first = snap(probes[0]).positions
         moved = np.zeros(len(first), bool)
         for k in probes[1:]:
-            moved |= (snap(k).positions != first).any(axis=1)
+            moved |= ~same_rows(snap(k).positions, first)
         starts = np.asarray(scene.unit_vertex_offsets[:len(scene.units)], np.int64)
         ends = starts + np.array([u.num_points * u.num_instances for u in scene.units], np.int64)
         counts = np.concatenate([[0], np.cumsum(moved)])
@@ -269,7 +270,7 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
         first = snaps[min(snaps)].positions
         vertex_static = np.ones(len(first), bool)
         for i in sorted(snaps)[1:]:
-            vertex_static &= (snaps[i].positions == first).all(axis=1)
+            vertex_static &= same_rows(snaps[i].positions, first)
     entry_tri, entry_k0, entry_k1 = plan_entries(scene.tri_unit, scene.tri_vertices, np.array(seg_of_unit, np.int64),
                                                  k_global, vis, vertex_static)
     return MotionPlan(positions=positions, normals=normals, lights=lights, entry_tri=entry_tri,
