@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.camera import Projection
+from ..core.sorting import stable_argsort
 from .screen_bounds import CROSSES_NEAR, DEPTH_KEEP, screen_bounds
 from .tile_lists import tile_lists
 
@@ -221,7 +222,7 @@ def bin_entries(proj: Projection, boxes: np.ndarray, keep: np.ndarray, tile_size
     tiles_y = (proj.height + tile_size - 1) // tile_size
     idx = np.nonzero(keep)[0]
     if near_depth is not None:
-        idx = idx[np.argsort(np.asarray(near_depth)[idx], kind="stable")]
+        idx = idx[stable_argsort(np.asarray(near_depth)[idx])]
     if bands is not None:
         bands = np.asarray(bands, np.float32)
         bands = bands[:, None] if bands.ndim == 2 else bands          # (E, 4): one slab each

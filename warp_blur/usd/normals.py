@@ -24,6 +24,7 @@ from pxr import Usd, UsdGeom
 from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
 from ..core.host_arrays import vec3d_array
 from ..core.parallel import cheap_pass_threads, launch_pixels
+from ..core.sorting import stable_argsort
 from ..core.log import warn_once
 from .values import array_value, unregistered
 
@@ -217,7 +218,7 @@ class SmoothNormals:
         self.num_vertices = num_vertices
         self.num_triangles = len(tris)
         idx = np.ascontiguousarray(tris, np.int32).ravel()
-        order = np.argsort(idx, kind="stable")   # each vertex's corners in the order bincount adds them
+        order = stable_argsort(idx)   # each vertex's corners in the order bincount adds them
         offsets = np.zeros(num_vertices + 1, np.int32)
         np.cumsum(np.bincount(idx, minlength=num_vertices), out=offsets[1:])
         self._tris = wp.array(idx.reshape(-1, 3), dtype=wp.vec3i, device="cpu")
