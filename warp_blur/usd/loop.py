@@ -12,12 +12,12 @@ Meshes with faces other than triangles or with non-manifold edges are not refine
 from __future__ import annotations
 
 import numpy as np
-from scipy import sparse
 
 
 def _one_level(tris: np.ndarray, n: int):
     """(stencil (n + E, n), child triangles (4F, 3), (face, child) of each) of one Loop level over
     n points, or None for a non-manifold mesh."""
+    from scipy import sparse   # (imported where used: ~0.13 s at start-up, for stages that subdivide)
     f = len(tris)
     e_all = np.stack([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]], axis=1).reshape(-1, 2)   # (3F, 2)
     opposite = tris[:, [2, 0, 1]].reshape(-1)                                                      # (3F,)
@@ -73,6 +73,7 @@ def loop_refine(counts: np.ndarray, indices: np.ndarray, num_points: int, levels
     """(stencil (N', N), triangles (F', 3), parent face (F',), corner weights (F', 3, 3)) after
     `levels` Loop levels of a triangle cage, or None (a face that is not a triangle, non-manifold
     edges, or levels < 1)."""
+    from scipy import sparse   # (imported where used: ~0.13 s at start-up, for stages that subdivide)
     if levels < 1 or len(counts) == 0 or (counts != 3).any():
         return None
     tris = indices.reshape(-1, 3).astype(np.int64)

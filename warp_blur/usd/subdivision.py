@@ -29,7 +29,6 @@ from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import sparse
 
 from .loop import loop_refine
 from .values import array_value, value_count
@@ -62,6 +61,7 @@ def _one_level(faces: list[np.ndarray], n: int, edge_sharpness: dict | None = No
     (edge_sharpness: {(a, b) with a < b: sharpness}) and corners (vertex_sharpness (n,)): (stencil
     (n', n), quads (F', 4), (face, corner, k) of each quad's source, the child edges' and
     vertices' sharpness), or None for a non-manifold mesh."""
+    from scipy import sparse   # (imported where used: ~0.13 s at start-up, for stages that subdivide)
     edge_sharpness = edge_sharpness or {}
     edge_id: dict[tuple[int, int], int] = {}
     edge_faces: list[list[int]] = []
@@ -255,6 +255,7 @@ def refine(counts: np.ndarray, indices: np.ndarray, num_points: int, levels: int
     """`levels` Catmull-Clark levels of a cage (faceVertexCounts, faceVertexIndices over
     num_points), with crease_tables' creases and corners; None when the mesh cannot be refined
     here (non-manifold, degenerate faces) or levels is 0."""
+    from scipy import sparse   # (imported where used: ~0.13 s at start-up, for stages that subdivide)
     if len(counts) == 0 or counts.min() < 3:
         return None
     offsets = np.r_[0, np.cumsum(counts)]
@@ -296,6 +297,7 @@ def split_at_creases(quads: np.ndarray, creases: dict, n: int) -> tuple[np.ndarr
     around it that its crease edges ({(a, b) with a < b: sharpness > 0}) separate, so smooth vertex
     normals stay on each side of a crease (hard shading, as the limit surface has there). The copies
     are the same point (same stencil row): positions stay bit-identical, the mesh watertight."""
+    from scipy import sparse   # (imported where used: ~0.13 s at start-up, for stages that subdivide)
     from scipy.sparse import csgraph
     nq = len(quads)
     corner = np.arange(nq * 4).reshape(nq, 4)

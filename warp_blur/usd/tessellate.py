@@ -9,6 +9,7 @@ from pxr import Usd, UsdGeom
 
 from ..core.log import warn_once
 from ..core.settings import DEFAULT_SPHERE_ERROR_PX
+from .shape_cache import cached_arrays
 
 
 def triangulate_corners(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray | None = None,
@@ -49,13 +50,18 @@ CUBE_INDICES = np.array([0, 1, 2, 3, 4, 5, 6, 7, 0, 6, 5, 1, 4, 7, 3, 2, 0, 3, 7
 
 
 def _axis_rotation(axis: str) -> np.ndarray:
-    """4x4 (column-vector) rotation taking trimesh's +Z axis to USD's `axis`."""
-    import trimesh   # imported where used: it costs ~0.6 s at start-up
+    """4x4 (column-vector) rotation taking trimesh's +Z axis to USD's `axis` (trimesh's own
+    matrix, kept on disk: shape_cache.py)."""
+    if axis not in ("X", "Y"):
+        return np.eye(4)
+    return cached_arrays(f"axis rotation {axis}", lambda: (_trimesh_axis_rotation(axis),))[0]
+
+
+def _trimesh_axis_rotation(axis: str) -> np.ndarray:
+    import trimesh   # imported where used: it costs ~0.6 s at start-up (shape_cache.py)
     if axis == "X":
         return trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0])
-    if axis == "Y":
-        return trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0])
-    return np.eye(4)
+    return trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0])
 
 
 #: icosphere subdivisions of an implicit sphere that is large on screen (1280 triangles)
@@ -181,9 +187,22 @@ def _tessellate(prim: Usd.Prim, time: Usd.TimeCode, sphere_level: int) -> tuple[
 def _trimesh_shape(kind: str, radius: float, height: float, axis: str, level: int = SPHERE_LEVEL_MAX
                    ) -> tuple[np.ndarray, np.ndarray]:
     """(points, triangles) of a sphere (an icosphere of `level` subdivisions; below
-    SPHERE_LEVEL_MAX scaled to the full level's surface area), cylinder, cone or capsule, made by trimesh (~0.2-0.5 ms each) once per kind and dimensions: a stage of a
-    thousand proxy spheres makes one. Read-only: every prim of those dimensions shares them."""
-    import trimesh   # imported where used: it costs ~0.6 s at start-up
+    SPHERE_LEVEL_MAX scaled to the full level's surface area), cylinder, cone or capsule, made by
+    trimesh (~0.2-0.5 ms each) once per kind and dimensions and kept on disk for later processes
+    (shape_cache.py): a stage of a thousand proxy spheres makes one. Read-only: every prim of
+    those dimensions shares them."""
+    key = f"{kind} radius {radius!r} height {height!r} axis {axis} level {level}"
+    pts, tris = cached_arrays(key, lambda: _make_trimesh_shape(kind, radius, height, axis, level))
+    pts, tris = np.array(pts, np.float64), np.array(tris, np.int32)
+    pts.flags.writeable = False
+    tris.flags.writeable = False
+    return pts, tris
+
+
+def _make_trimesh_shape(kind: str, radius: float, height: float, axis: str, level: int
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """_trimesh_shape's arrays, made by trimesh."""
+    import trimesh   # imported where used: it costs ~0.6 s at start-up (shape_cache.py)
 
     if kind == "sphere":
         mesh = trimesh.creation.icosphere(subdivisions=level, radius=radius)
@@ -203,10 +222,7 @@ def _trimesh_shape(kind: str, radius: float, height: float, axis: str, level: in
         mesh = trimesh.creation.capsule(height=height, radius=radius, count=[16, 16])
         mesh.apply_translation(-mesh.bounds.mean(axis=0))
         mesh.apply_transform(_axis_rotation(axis))
-    pts, tris = np.array(mesh.vertices, np.float64), np.array(mesh.faces, np.int32)
-    pts.flags.writeable = False
-    tris.flags.writeable = False
-    return pts, tris
+    return np.array(mesh.vertices, np.float64), np.array(mesh.faces, np.int32)
 
 
 #: is_closed_surface tests surfaces of at most this many triangles in plain Python
