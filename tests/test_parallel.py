@@ -117,3 +117,23 @@ def test_passes_leave_the_preparing_helper_a_core_only_while_it_is_the_bottlenec
     # capped passes that then run over twice as long as a preparation get every thread back
     seen = _cap_seen_by_steps(0.03, [0.0, 0.0, 0.0, 0.1, 0.1, 0.0])
     assert seen[3] == 3 and seen[5] is None
+
+
+def test_bands_launched_from_inside_a_pool_job_never_wait_on_the_busy_pool():
+    """Every pool thread running a map_threads job that itself launches bands (a shadow face's
+    vertex pass, say): the inner bands run in the job's own thread instead of queueing behind the
+    jobs that wait for them (a deadlock)."""
+    both_busy = threading.Barrier(2, timeout=30)
+    results: list[np.ndarray] = []
+
+    def job(_item: int) -> np.ndarray:
+        both_busy.wait()   # both pool threads hold a job before either launches
+        hits = wp.zeros(50000, dtype=int, device="cpu")
+        launch_pixels(count_pixels, 50000, lambda first, _n: [first, hits], "cpu", threads=2)
+        return hits.numpy()
+
+    runner = threading.Thread(target=lambda: results.extend(map_threads(job, [0, 1], threads=2)), daemon=True)
+    runner.start()
+    runner.join(timeout=60)
+    assert not runner.is_alive(), "the jobs' inner bands waited on the pool the jobs hold"
+    assert len(results) == 2 and all((r == 1).all() for r in results)

@@ -21,6 +21,9 @@ _family = threading.local()
 #: the current thread's cap on launch_pixels' threads (run_prepared sets it while its helper's
 #: preparation, not the kernels, holds the passes back)
 _launch_cap = threading.local()
+#: set in the pools' own threads: a job or band running there launches its bands in its own
+#: thread (queued on the pool it runs on, they could wait for ever behind the jobs waiting on them)
+_pool_thread = threading.local()
 T = TypeVar("T")
 
 #: bands per thread for pixel kernels whose cost varies strongly across the image (every pixel
@@ -33,11 +36,21 @@ def default_threads() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
 
 
+def _mark_pool_thread() -> None:
+    _pool_thread.inside = True
+
+
+def in_pool_thread() -> bool:
+    """True in a thread of the band and job pools (launches from there run serially in it)."""
+    return getattr(_pool_thread, "inside", False)
+
+
 def _pool(n: int) -> ThreadPoolExecutor:
     key = (getattr(_family, "name", ""), n)
     with _pools_lock:
         if key not in _pools:
-            _pools[key] = ThreadPoolExecutor(max_workers=n, thread_name_prefix=f"warp_blur{key[0]}")
+            _pools[key] = ThreadPoolExecutor(max_workers=n, thread_name_prefix=f"warp_blur{key[0]}",
+                                             initializer=_mark_pool_thread)
         return _pools[key]
 
 
@@ -83,7 +96,7 @@ def map_threads(fn: Callable, items: list, threads: int | None = None) -> list:
     """[fn(x) for x in items], run on the shared thread pool (serially with one thread or one
     item): for jobs that each launch single-core kernels and do host work between them."""
     threads = threads or default_threads()
-    if threads == 1 or len(items) <= 1:
+    if threads == 1 or len(items) <= 1 or in_pool_thread():
         return [fn(x) for x in items]
     return list(_pool(threads).map(fn, items))
 
@@ -162,6 +175,8 @@ def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], d
     cap = getattr(_launch_cap, "threads", None)
     if cap is not None:
         threads = min(threads, cap)
+    if in_pool_thread():
+        threads = 1
     if (device != "cpu" or threads == 1) and (max_band is None or num_pixels <= max_band):
         wp.launch(kernel, dim=num_pixels, inputs=inputs(start, num_pixels), device=device)
         return
@@ -184,7 +199,7 @@ def launch_row_bands(kernel, dim: int, rows: int, inputs: Callable[[int, int], l
     same element (CPU atomics are not atomic across launches running in parallel)."""
     if dim <= 0 or rows <= 0:
         return
-    threads = threads or default_threads()
+    threads = 1 if in_pool_thread() else threads or default_threads()
     if device != "cpu" or threads == 1:
         wp.launch(kernel, dim=dim, inputs=inputs(0, rows), device=device)
         return
