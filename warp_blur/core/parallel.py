@@ -89,6 +89,10 @@ def _run_bands(kernel, device: str, threads: int, starts: range, run: Callable[[
     def run_and_report(start: int) -> None:
         run(start)
         progress.band_done()
+    if in_pool_thread():   # (bands capped in size, launched from a pool thread: one after another here)
+        for start in starts:
+            run_and_report(start)
+        return
     list(_pool(threads).map(run_and_report, starts))
 
 

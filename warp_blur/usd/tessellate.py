@@ -49,15 +49,19 @@ CUBE_POINTS = np.array([(0.5, 0.5, 0.5), (-0.5, 0.5, 0.5), (-0.5, -0.5, 0.5), (0
 CUBE_INDICES = np.array([0, 1, 2, 3, 4, 5, 6, 7, 0, 6, 5, 1, 4, 7, 3, 2, 0, 3, 7, 6, 4, 2, 1, 5], np.int64)
 
 
+@functools.lru_cache(maxsize=4)
 def _axis_rotation(axis: str) -> np.ndarray:
     """4x4 (column-vector) rotation taking trimesh's +Z axis to USD's `axis` (trimesh's own
-    matrix, kept on disk: shape_cache.py)."""
-    if axis not in ("X", "Y"):
-        return np.eye(4)
-    return cached_arrays(f"axis rotation {axis}", lambda: (_trimesh_axis_rotation(axis),))[0]
+    matrix, kept on disk: shape_cache.py). Read-only: shared by every caller."""
+    rot = np.eye(4)
+    if axis in ("X", "Y"):
+        rot = np.array(cached_arrays(f"axis rotation {axis}", lambda: (_trimesh_axis_rotation(axis),))[0])
+    rot.flags.writeable = False
+    return rot
 
 
 def _trimesh_axis_rotation(axis: str) -> np.ndarray:
+    """trimesh's rotation taking +Z to `axis` ("X" or "Y")."""
     import trimesh   # imported where used: it costs ~0.6 s at start-up (shape_cache.py)
     if axis == "X":
         return trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0])
