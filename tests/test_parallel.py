@@ -137,3 +137,18 @@ def test_bands_launched_from_inside_a_pool_job_never_wait_on_the_busy_pool():
     runner.join(timeout=60)
     assert not runner.is_alive(), "the jobs' inner bands waited on the pool the jobs hold"
     assert len(results) == 2 and all((r == 1).all() for r in results)
+
+
+def test_the_preparing_helper_and_pool_threads_launch_serially_the_caller_does_not():
+    """run_prepared's helper launches its own bands in its thread (on the pool they would queue
+    behind the pass it overlaps), as the pools' threads do; the thread running the passes does not."""
+    from warp_blur.core.parallel import launches_serially
+    seen: dict[str, bool] = {}
+
+    def steps():
+        seen["helper"] = launches_serially()
+        yield lambda: seen.__setitem__("caller", launches_serially())
+
+    run_prepared(steps())
+    seen["pool"] = map_threads(lambda _x: launches_serially(), [0, 1], threads=2)[0]
+    assert seen == {"helper": True, "caller": False, "pool": True}
