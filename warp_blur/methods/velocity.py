@@ -33,7 +33,7 @@ import warp as wp
 from ..raster.binning import tile_mask_pixels
 from ..raster.device_data import make_bins, make_geometry
 from .frame import FrameContext
-from ..core.parallel import launch_pixels
+from ..core.parallel import Background, default_threads, launch_pixels
 from ..core.affine import invert_affine
 from ..kernels.raster import render_depth_motion, render_sharp, render_sharp_depth_motion
 from ..usd.normals import vertex_normals
@@ -208,6 +208,13 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
             forward = np.einsum("ij,ij->i", n, knots[2] - knots[0]) > 0
             center.positions = np.where(forward[:, None], knots[2], knots[0])
             knots[1] = center.positions
+    # the centre's shading, shadow maps included (their set-up and rendering), built on a helper
+    # thread beside the geometry and binning below, as analytic's and stochastic's maps are; in
+    # turn when no light casts a shadow or one core is asked for
+    shading_job = None
+    if s.spatial_samples == 1 and ctx.may_cast_shadows() and (s.threads or default_threads()) > 1:
+        _ = ctx.tables   # made here, not raced for by the helper and the geometry below
+        shading_job = Background(lambda: ctx.shading([center]), "shadows")
     # sharp colour at the shutter centre (possibly with extruded trails), depth and object motion:
     # one visibility pass (two when spatial samples need the colour at several sub-pixel positions)
     sharp = wp.zeros((ctx.num_pixels, 4), dtype=float, device=dev)
@@ -222,7 +229,7 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
     motion_w = wp.zeros(ctx.num_pixels, dtype=wp.vec2, device=dev)
     u = ctx.shutter_fraction(center.time)
     if s.spatial_samples == 1:
-        sh = ctx.shading([center])
+        sh = shading_job.result() if shading_job is not None else ctx.shading([center])
         with ctx.timed("render"):
             launch_pixels(render_sharp_depth_motion, ctx.num_pixels,
                           lambda first, _n: [view, geo, sh, b, u, 0, 2, first, sharp, depth_w, motion_w], dev,
