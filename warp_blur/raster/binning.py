@@ -59,27 +59,22 @@ def entry_bounds(proj: Projection, positions: np.ndarray, tri_vertices: np.ndarr
     None unless `slabs`), nearest view depth (E,) of each entry's vertices over its span (the key
     that orders tile lists front first)) of the entries: triangle entry_tri[i] moving linearly
     between knots entry_k0[i] and entry_k1[i] of positions (K+1, V, 3), camera space."""
-    slabs_out = None
     if len(entry_tri) and (entry_k0 == entry_k0[0]).all() and (entry_k1 == entry_k0[0]).all():
         # one knot for all (a sharp instant, a shadow map): nothing moves, so the box test alone
-        # (slabs cost more to compute and test than they save there)
-        slabs_out = pass_all_slabs(len(entry_tri)) if slabs else None
+        # (slabs cost more to compute and test than they save there: below, all-pass slabs)
         if len(entry_tri) < ONE_KNOT_KERNEL_ENTRIES:
             # each vertex projected once, then gathered per corner (the same values as projecting
             # the corners): a few NumPy calls, cheaper than the kernel's launches for a few entries
             box, keep, near = _one_knot_bounds(proj, positions[entry_k0[0]], tri_vertices, entry_tri, margin)
-            return box, keep, slabs_out, near
+            return box, keep, (pass_all_slabs(len(entry_tri)) if slabs else None), near
         k = int(entry_k0[0])   # else the kernel, given that knot alone
         positions = positions[k:k + 1]
         entry_k0 = entry_k1 = np.zeros(len(entry_tri), np.int32)
-        slabs = False
     moving = bool((entry_k0 != entry_k1).any())
     near, box, flags, bands = screen_bounds(proj, positions, tri_vertices, entry_tri, entry_k0, entry_k1, margin,
                                             BAND_SLABS if slabs and moving else 0, threads)
     if slabs and not moving:
         bands = pass_all_slabs(len(entry_tri))
-    if slabs_out is not None:
-        bands = slabs_out
     keep = (flags & DEPTH_KEEP) != 0
     crosses = (flags & CROSSES_NEAR) != 0
     still = crosses & (entry_k0 == entry_k1)

@@ -98,21 +98,14 @@ class FaceRasterizer:
             visible = visible & subset
         return np.flatnonzero(visible).astype(np.int32)
 
-    def _face_geometry(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, subset: np.ndarray | None):
-        """(projection, face-space positions (V, 3), visible triangles (N,) (of `subset`, a (T,)
-        mask, when given), their geometry with one static entry each) of the face at sample s."""
+    def scene(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, subset: np.ndarray | None):
+        """(view, geometry with one static entry per visible triangle, device tile bins) of the face
+        at sample s, with the visible triangles (of `subset`, a (T,) mask, when given)."""
         q = s.positions @ a.T + t
         proj = face.projection(self.size)
         tris = self._visible(s, subset)
         k = np.zeros(len(tris), np.int32)
         geo = make_geometry(self.tables, q[None], None, tris, k, k)
-        return proj, q, tris, geo
-
-    def scene(self, a: np.ndarray, t: np.ndarray, face: Face, s: Sample, subset: np.ndarray | None):
-        """(view, geometry, device tile bins) of the face at sample s, with the visible triangles
-        (of `subset`, a (T,) mask, when given)."""
-        proj, q, tris, geo = self._face_geometry(a, t, face, s, subset)
-        k = np.zeros(len(tris), np.int32)
         boxes, keep = entry_pixel_bounds(proj, q[None], self.tri_vertices, tris, k, k, 1.0)
         bins = bin_entries(proj, boxes, keep, TILE_SIZE)
         view = make_view(proj, 1, bins, TILE_SIZE)
