@@ -2,6 +2,7 @@
 against the chords of a level, and what that decides."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -107,3 +108,17 @@ def test_plan_entries_equal_the_unit_by_unit_loop(seed):
     want = _entries_unit_by_unit(tri_unit, tri_vertices, seg_of_unit, k_global, vis, vertex_static)
     for g, w in zip(got, want):
         assert g.dtype == np.int32 and np.array_equal(g, w)
+
+
+def test_a_capped_prim_is_named_with_how_far_its_chords_stray_and_what_was_allowed(scene_path):
+    """A quad swinging through 1.3 periods needs more segments than max_segments = 4 allows: it is
+    rendered with 4 and listed as capped, and the warning says how far those chords stray from
+    USD's path on screen against the tolerance they missed (the first more, the second positive)."""
+    path = _swing_stage(scene_path(), periods=1.3)
+    out = wb.render(path, frame=1, resolution=RES, method="analytic", aovs=(), max_segments=4)
+    assert out.stats["motion_segments"]["/World/Quad"] == 4
+    assert out.stats["motion_segments_capped"] == ["/World/Quad"]
+    said = [w for w in out.stats["warnings"] if w.startswith("/World/Quad: motion needs more than 4")]
+    assert len(said) == 1
+    stray, allowed = (float(x) for x in re.search(r"stray up to (\S+) px .* where (\S+) px is allowed", said[0]).groups())
+    assert stray > allowed > 0

@@ -245,9 +245,13 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
         if (dev <= pending[ui]).all():
             continue
         capped.append(scene.units[ui].path)
+        # the vertex furthest over its tolerance: how far its chords stray, and what was allowed
+        worst = int(np.argmax(dev / pending[ui]))
         warn_once(f"segments-cap:{scene.units[ui].path}",
                   f"{scene.units[ui].path}: motion needs more than {m} linear segments in this shutter; "
-                  f"rendering with {m} (raise max_segments for more accuracy)")
+                  f"rendering with {m}, whose chords stray up to {dev[worst]:.2g} px on screen from "
+                  f"USD's path where {pending[ui][worst]:.2g} px is allowed (raise max_segments for more "
+                  f"accuracy)")
     if lights_pending:
         light_k = min(m, MAX_LIGHT_SEGMENTS)
         warn_once("light-segments-cap", f"the lights change faster over the shutter than {light_k} linear segments "
