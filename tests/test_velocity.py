@@ -71,6 +71,30 @@ def test_more_gather_samples_smooth_the_blur_without_adding_to_it(scene_path, sa
     assert more.sum() == pytest.approx(base.sum(), rel=0.01)
 
 
+@pytest.mark.parametrize("who", ["object", "camera"])
+def test_a_point_that_passes_behind_the_eye_blurs_over_the_half_it_is_seen(scene_path, who):
+    """A small quad 6 units in front of the eye at shutter open and behind it at close (it moves,
+    or the camera moves past it): it has no screen displacement (its motion AOV is 0, as SPEC's
+    open-to-close displacement has no value there, and as the other methods write it), but the
+    velocity blur takes twice its motion over the half it is seen in, so it blurs instead of
+    staying sharp (before: unblurred where the quad moved; mirrored through the eye where the
+    camera did)."""
+    if who == "object":
+        path = emissive_quad_stage(scene_path(), half=0.3,
+                                   translate_samples={0.5: (-1.0, 0.3, 4.0), 1.5: (1.0, 0.3, 12.0)})
+    else:
+        path = emissive_quad_stage(scene_path(), half=0.3, translate=(0.6, 0.2, 4.0),
+                                   camera={"translate_samples": {0.5: (0, 0, 10), 1.5: (0, 0, 2)}})
+    ref = wb.render(path, frame=1, resolution=RES, samples=1024, aovs=())
+    sharp = wb.render(path, frame=1, resolution=RES, samples=1, aovs=())
+    vel = wb.render(path, frame=1, resolution=RES, method="velocity", aovs=("Z", "motion"))
+    seen = np.isfinite(vel.aovs["Z"])
+    assert seen.sum() > 20
+    assert not vel.aovs["motion"][seen].any()
+    assert vel.stats["velocity_max_px"] > 20
+    assert rmse(vel.rgba, ref.rgba) < 0.92 * rmse(sharp.rgba, ref.rgba)
+
+
 def test_extrusion_and_facing_options_run(scene_path):
     path = lit_stage(scene_path())
     a = wb.render(path, frame=1, resolution=RES, method="velocity", velocity_extrude=True, back_blur=0.5)

@@ -14,7 +14,10 @@ W, H = 61, 45   # odd sizes: the half-resolution and tile edges are partial
 
 # ------------------------------------------------------------------ the NumPy forms (the oracle)
 def camera_motion_numpy(proj: Projection, depth: np.ndarray, open_from_center: np.ndarray,
-                        close_from_center: np.ndarray) -> np.ndarray:
+                        close_from_center: np.ndarray, half_seen: bool = False) -> np.ndarray:
+    """(H, W, 2) the camera's screen motion of what each pixel sees: 0 where a point is behind
+    the eye at open or close (perspective), or with half_seen twice its motion over the half of
+    the shutter it is seen in (the pixel itself at the centre)."""
     h, w = depth.shape
     ys, xs = np.mgrid[0:h, 0:w].astype(np.float64) + 0.5
     wx, wy = proj.pixel_window_coords(xs, ys)
@@ -32,6 +35,17 @@ def camera_motion_numpy(proj: Projection, depth: np.ndarray, open_from_center: n
         motion = proj.project(p_close) - proj.project(p_open)
     behind = far & ((p_open[..., 2] >= 0) | (p_close[..., 2] >= 0))
     motion[~np.isfinite(motion).all(-1) | behind | (far & proj.orthographic)] = 0.0
+    if not proj.orthographic:
+        open_behind = ~far & (p_open[..., 2] >= 0)
+        close_behind = ~far & (p_close[..., 2] >= 0)
+        motion[open_behind | close_behind] = 0.0
+        if half_seen:
+            centre = np.stack([xs, ys], -1)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                only_close = close_behind & ~open_behind
+                motion[only_close] = 2 * (centre - proj.project(p_open))[only_close]
+                only_open = open_behind & ~close_behind
+                motion[only_open] = 2 * (proj.project(p_close) - centre)[only_open]
     return motion
 
 
@@ -102,9 +116,10 @@ def random_velocity(rng: np.random.Generator) -> np.ndarray:
     return v.astype(np.float32)
 
 
+@pytest.mark.parametrize("half_seen", [False, True])
 @pytest.mark.parametrize("ortho", [False, True])
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_camera_motion_matches_numpy(ortho, seed):
+def test_camera_motion_matches_numpy(ortho, seed, half_seen):
     rng = np.random.default_rng(seed)
     proj = Projection(orthographic=ortho, window=(-0.6, -0.45, 0.8, 0.5), near=0.1, far=1e4, width=W, height=H)
     depth = rng.uniform(0.5, 40, (H, W)).astype(np.float32)
@@ -112,10 +127,11 @@ def test_camera_motion_matches_numpy(ortho, seed):
     depth[:3, :3] = 0.05                       # near the eye: the open camera may put it behind
     cfw = [turn_and_shift(rng.normal(0, 0.3), rng.normal(size=3), rng.normal(0, 0.4, 3)) for _ in range(3)]
     to_open, to_close = invert_affine(cfw[1]) @ cfw[0], invert_affine(cfw[1]) @ cfw[2]
-    want = camera_motion_numpy(proj, depth, to_open, to_close)
+    want = camera_motion_numpy(proj, depth, to_open, to_close, half_seen)
     base = rng.normal(0, 2, (H * W, 2)).astype(np.float32)
     motion = wp.array(base, dtype=wp.vec2, device="cpu")
-    vb.camera_motion(wp.array(depth.ravel(), dtype=float, device="cpu"), motion, proj, to_open, to_close, "cpu")
+    vb.camera_motion(wp.array(depth.ravel(), dtype=float, device="cpu"), motion, proj, to_open, to_close, "cpu",
+                     half_seen=half_seen)
     got = motion.numpy().reshape(H, W, 2) - base.reshape(H, W, 2)
     big = np.abs(want) > 1e4   # points just behind the eye project far off: compare those relatively
     assert np.abs(want).max() > 1.0   # the camera moves

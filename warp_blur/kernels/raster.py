@@ -374,12 +374,18 @@ def render_over_recorded_instants(view: View, geo: Geometry, sh: Shading, bins: 
 
 @wp.func
 def store_depth_motion(view: View, geo: Geometry, e: int, hit: wp.vec4, k_open: int, k_close: int, pix: int,
-                       depth: wp.array(dtype=float), motion: wp.array(dtype=wp.vec2)):
+                       depth: wp.array(dtype=float), motion: wp.array(dtype=wp.vec2),
+                       gather: wp.array(dtype=wp.vec2)):
     """Z and screen motion (pixels, knot k_open to k_close) of the point hit on entry e (e < 0:
-    nothing seen, Z inf and motion 0)."""
+    nothing seen, Z inf and motion 0). A point behind the eye at one end has no screen motion
+    (0, SPEC's motion AOV); where gather holds the pixel (the velocity method's blur), it gets
+    twice the motion of the half it is seen in instead (centre at the knot halfway), so what
+    passes the camera still blurs. Elsewhere gather holds the motion."""
     if e < 0:
         depth[pix] = wp.inf
         motion[pix] = wp.vec2(0.0, 0.0)
+        if gather.shape[0] > pix:
+            gather[pix] = wp.vec2(0.0, 0.0)
         return
     depth[pix] = hit[1]
     vi = geo.tri_vertices[geo.entry_tri[e]]
@@ -390,23 +396,37 @@ def store_depth_motion(view: View, geo: Geometry, e: int, hit: wp.vec4, k_open: 
     p1 = wa * geo.positions[k_close, vi[0]] + wb * geo.positions[k_close, vi[1]] + wc * geo.positions[k_close, vi[2]]
     r0 = to_raster(view, p0)
     r1 = to_raster(view, p1)
+    m = wp.vec2(0.0, 0.0)
     if r0[2] > 0.0 and r1[2] > 0.0:
-        motion[pix] = wp.vec2(r1[0] - r0[0], r1[1] - r0[1])
-    else:
-        motion[pix] = wp.vec2(0.0, 0.0)
+        m = wp.vec2(r1[0] - r0[0], r1[1] - r0[1])
+    motion[pix] = m
+    if gather.shape[0] > pix:
+        g = m
+        if (r0[2] > 0.0) != (r1[2] > 0.0):
+            kc = (k_open + k_close) // 2
+            pc = wa * geo.positions[kc, vi[0]] + wb * geo.positions[kc, vi[1]] + wc * geo.positions[kc, vi[2]]
+            rc = to_raster(view, pc)
+            if rc[2] > 0.0:
+                if r0[2] > 0.0:
+                    g = 2.0 * wp.vec2(rc[0] - r0[0], rc[1] - r0[1])
+                else:
+                    g = 2.0 * wp.vec2(r1[0] - rc[0], r1[1] - rc[1])
+        gather[pix] = g
 
 
 @wp.kernel(enable_backward=False)
 def render_depth_motion(view: View, geo: Geometry, bins: Bins, u: float, k_open: int, k_close: int,
                         first_pixel: int,
                         # outputs
-                        depth: wp.array(dtype=float), motion: wp.array(dtype=wp.vec2)):
+                        depth: wp.array(dtype=float), motion: wp.array(dtype=wp.vec2),
+                        gather: wp.array(dtype=wp.vec2)):
     """Z (view depth at shutter time u, inf where nothing is seen) and the screen motion in pixels
-    of the seen point from knot k_open to knot k_close (x right, y down; 0 where nothing is seen)."""
+    of the seen point from knot k_open to knot k_close (x right, y down; 0 where nothing is seen);
+    gather (empty, or one per pixel): the velocity method's blur velocity (store_depth_motion)."""
     pix = first_pixel + wp.tid()
     o, d = centre_ray(view, pix)
     e, _alpha, hit = nearest_at_centre(view, geo, bins, pix, o, d, u)
-    store_depth_motion(view, geo, e, hit, k_open, k_close, pix, depth, motion)
+    store_depth_motion(view, geo, e, hit, k_open, k_close, pix, depth, motion, gather)
 
 
 @wp.kernel(enable_backward=False)
@@ -414,7 +434,7 @@ def render_sharp_depth_motion(view: View, geo: Geometry, sh: Shading, bins: Bins
                               k_close: int, first_pixel: int,
                               # outputs
                               rgba: wp.array2d(dtype=float), depth: wp.array(dtype=float),
-                              motion: wp.array(dtype=wp.vec2)):
+                              motion: wp.array(dtype=wp.vec2), gather: wp.array(dtype=wp.vec2)):
     """render_sharp (weight 1, pixel centres) and render_depth_motion from one visibility pass:
     the velocity method's sharp image, Z and object motion."""
     pix = first_pixel + wp.tid()
@@ -426,4 +446,4 @@ def render_sharp_depth_motion(view: View, geo: Geometry, sh: Shading, bins: Bins
         color = shade_entry_hit(view, geo, sh, e, alpha, u, o, d, hit)
         cover = 1.0
     add_pixel(rgba, pix, 1.0, color, cover)
-    store_depth_motion(view, geo, e, hit, k_open, k_close, pix, depth, motion)
+    store_depth_motion(view, geo, e, hit, k_open, k_close, pix, depth, motion, gather)

@@ -530,9 +530,10 @@ class FrameContext:
         view, b = self.view(bins), make_bins(bins, self.device)
         depth = wp.zeros(self.num_pixels, dtype=float, device=self.device)
         motion = wp.zeros(self.num_pixels, dtype=wp.vec2, device=self.device)
+        no_gather = wp.zeros(0, dtype=wp.vec2, device=self.device)
         with self.timed("aovs"):
             launch_pixels(render_depth_motion, self.num_pixels,
-                          lambda first, _n: [view, geo, b, 0.5, 0, 2, first, depth, motion],
+                          lambda first, _n: [view, geo, b, 0.5, 0, 2, first, depth, motion, no_gather],
                           self.device, self.settings.threads)
         h, w = self.proj.height, self.proj.width
         return depth.numpy().reshape(h, w), motion.numpy().reshape(h, w, 2)

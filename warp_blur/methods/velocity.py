@@ -20,6 +20,8 @@ a per-pixel velocity buffer, and a depth-aware gather along the velocity.
   (GATHER_CALIBRATION_SAMPLES), so N sets how smooth the blur is, not how much there is.
 - Vertex-trail extrusion (option): vertices whose normals face their motion are placed at
   shutter close, the others at open, stretching silhouettes before the gather.
+- A point behind the eye at open or close has no screen displacement (motion AOV 0); the blur
+  takes twice its motion over the half of the shutter it is seen in (gather_w).
 Known limits: blur from shading changes (a moving shadow on a static receiver, a moving light)
 cannot appear, since only geometry has velocity; overlapping motions are approximated.
 """
@@ -235,12 +237,16 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
     view, b = ctx.view(tile_bins), make_bins(tile_bins, dev)
     depth_w = wp.zeros(ctx.num_pixels, dtype=float, device=dev)
     motion_w = wp.zeros(ctx.num_pixels, dtype=wp.vec2, device=dev)
+    # the blur's velocity: the motion, and where a point passes behind the eye (no motion AOV)
+    # twice its motion over the half of the shutter it is seen in
+    gather_w = wp.zeros(ctx.num_pixels, dtype=wp.vec2, device=dev)
     u = ctx.shutter_fraction(center.time)
     if s.spatial_samples == 1:
         sh = shading_job.result() if shading_job is not None else ctx.shading([center])
         with ctx.timed("render"):
             launch_pixels(render_sharp_depth_motion, ctx.num_pixels,
-                          lambda first, _n: [view, geo, sh, b, u, 0, 2, first, sharp, depth_w, motion_w], dev,
+                          lambda first, _n: [view, geo, sh, b, u, 0, 2, first, sharp, depth_w, motion_w, gather_w],
+                          dev,
                           s.threads)
         if ctx.scene.any_fractional:
             fractional = ctx.scene.tri_fractional[tris]
@@ -251,19 +257,21 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
         ctx.sharp_pass(center, 1.0, sharp, cull=not s.velocity_extrude)   # extruded trails fold surfaces
         with ctx.timed("velocity"):
             launch_pixels(render_depth_motion, ctx.num_pixels,
-                          lambda first, _n: [view, geo, b, u, 0, 2, first, depth_w, motion_w], dev, s.threads)
+                          lambda first, _n: [view, geo, b, u, 0, 2, first, depth_w, motion_w, gather_w], dev,
+                          s.threads)
     threads = s.threads
     with ctx.timed("velocity"):
         if camera_moves:
-            camera_motion(depth_w, motion_w, ctx.proj, invert_affine(cfw[1]) @ cfw[0],
-                          invert_affine(cfw[1]) @ cfw[2], dev, threads)
+            for buffer, half_seen in ((motion_w, False), (gather_w, True)):
+                camera_motion(depth_w, buffer, ctx.proj, invert_affine(cfw[1]) @ cfw[0],
+                              invert_affine(cfw[1]) @ cfw[2], dev, threads, half_seen=half_seen)
         # copies: the device buffers go back to the allocator when the frame ends
         depth = depth_w.numpy().reshape(h, w).copy()
         ctx.aov_depth = depth
         ctx.aov_motion = motion_w.numpy().reshape(h, w, 2).copy()
-        velocity = motion_w
+        velocity = gather_w
         if s.front_blur != 1.0 or s.back_blur != 1.0:
-            v = ctx.aov_motion.astype(np.float64)
+            v = gather_w.numpy().reshape(h, w, 2).astype(np.float64)
             n = normals_from_depth(ctx, depth)
             # screen-space facing: the normal's x/y (y down on screen) against the motion
             facing = n[..., 0] * v[..., 0] - n[..., 1] * v[..., 1]

@@ -23,12 +23,13 @@ STILL_PX = wp.constant(1.0e-3)
 @wp.func
 def raster_of(p: wp.vec3, window: wp.vec4, width: float, height: float, ortho: int) -> wp.vec3:
     """(x, y, ok) raster position in pixels (x right, y down) of camera-space point p; ok = 0
-    where the perspective division is by zero or gives a non-finite position."""
+    where p is not in front of the eye (a perspective view: it has no place on screen, as
+    kernels/raster.to_raster says of object motion) or the position is not finite."""
     wx = p[0]
     wy = p[1]
     if ortho == 0:
         depth = -p[2]
-        if depth == 0.0:
+        if depth <= 0.0:
             return wp.vec3(0.0, 0.0, 0.0)
         wx = p[0] / depth
         wy = p[1] / depth
@@ -41,14 +42,16 @@ def raster_of(p: wp.vec3, window: wp.vec4, width: float, height: float, ortho: i
 
 @wp.kernel(enable_backward=False)
 def add_camera_motion(depth: wp.array(dtype=float), width: int, height: int, window: wp.vec4, ortho: int,
-                      open_from_center: wp.mat44, close_from_center: wp.mat44, first: int,
+                      open_from_center: wp.mat44, close_from_center: wp.mat44, half_seen: int, first: int,
                       # in and out
                       motion: wp.array(dtype=wp.vec2)):
     """motion[pix] += the screen motion (pixels, open -> close) of the static point seen at
     depth[pix] (view depth; inf where nothing is hit), from the camera's motion alone: unprojected
     with the centre camera, reprojected with the open and close cameras (row vectors: p @ M). Where
     nothing is hit, the pixel's ray direction (the dome turns with the camera; nothing in an
-    orthographic view or where the turn reaches 90°)."""
+    orthographic view or where the turn reaches 90°). A point behind the eye at open or close adds
+    nothing, or with half_seen (the velocity method's blur) twice its motion over the half of the
+    shutter it is seen in (at the centre it is where the pixel is)."""
     pix = first + wp.tid()
     wf = float(width)
     hf = float(height)
@@ -75,9 +78,16 @@ def add_camera_motion(depth: wp.array(dtype=float), width: int, height: int, win
         return
     ra = raster_of(a, window, wf, hf, ortho)
     rb = raster_of(b, window, wf, hf, ortho)
-    if ra[2] == 0.0 or rb[2] == 0.0:
-        return
     m = wp.vec2(rb[0] - ra[0], rb[1] - ra[1])
+    if ra[2] == 0.0 and rb[2] == 0.0:
+        return
+    if ra[2] == 0.0 or rb[2] == 0.0:
+        if half_seen == 0 or far:
+            return
+        if ra[2] != 0.0:
+            m = 2.0 * wp.vec2(px - ra[0], py - ra[1])
+        else:
+            m = 2.0 * wp.vec2(rb[0] - px, rb[1] - py)
     if wp.isfinite(m[0]) and wp.isfinite(m[1]):
         motion[pix] = motion[pix] + m
 
@@ -195,16 +205,18 @@ def neighbour_max(tmax: wp.array(dtype=wp.vec2), tiles_x: int, tiles_y: int, fir
 
 
 def camera_motion(depth: wp.array, motion: wp.array, proj: Projection, open_from_center: np.ndarray,
-                  close_from_center: np.ndarray, device: str, threads: int | None = None) -> None:
+                  close_from_center: np.ndarray, device: str, threads: int | None = None,
+                  half_seen: bool = False) -> None:
     """Add to motion ((H*W,) vec2, pixels over the shutter) the camera's motion reconstructed from
     depth ((H*W,) view depth, inf where nothing is hit); the matrices (4, 4 float64, row vectors)
-    take centre-camera points to the open and close cameras."""
+    take centre-camera points to the open and close cameras. half_seen: add_camera_motion's."""
     w, h = proj.width, proj.height
     window = wp.vec4(*(float(c) for c in proj.window))
     m0 = wp.mat44(*np.asarray(open_from_center, np.float64).ravel().astype(np.float32))
     m1 = wp.mat44(*np.asarray(close_from_center, np.float64).ravel().astype(np.float32))
     launch_pixels(add_camera_motion, w * h,
-                  lambda first, _n: [depth, w, h, window, int(proj.orthographic), m0, m1, first, motion],
+                  lambda first, _n: [depth, w, h, window, int(proj.orthographic), m0, m1, int(half_seen), first,
+                                     motion],
                   device, threads)
 
 
