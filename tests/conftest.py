@@ -27,6 +27,6 @@ def bin_in_entry_order(monkeypatch) -> None:
     from warp_blur.methods.frame import FrameContext
     original_bin = FrameContext.bin_groups
 
-    def entry_order(self, positions, entry_tri, entry_k0, entry_k1, groups, nearest_first=False):
-        return original_bin(self, positions, entry_tri, entry_k0, entry_k1, groups, False)
+    def entry_order(self, positions, entry_tri, entry_k0, entry_k1, groups, nearest_first=False, counted=True):
+        return original_bin(self, positions, entry_tri, entry_k0, entry_k1, groups, False, counted)
     monkeypatch.setattr(FrameContext, "bin_groups", entry_order)

@@ -19,6 +19,7 @@ from pxr import Tf
 
 from .core import log, progress
 from .core.allocator import keep_freed_memory
+from .core.parallel import Background, default_threads
 from .methods.frame import FrameContext
 from .usd.framing import FRAMING_CAMERA_PATH, is_framing_camera, place_framing_camera
 from .core.errors import SettingsError, StageError, UserError
@@ -188,6 +189,8 @@ class Renderer:
         one sharp image when nothing moves) and the AOVs asked for."""
         s, shutter, proj = ctx.settings, ctx.shutter, ctx.proj
         h, w = proj.height, proj.width
+        wants_aovs = shutter.exposed and ("Z" in s.aovs or "motion" in s.aovs)
+        aov_job = None
         if not shutter.exposed:
             rgba = np.zeros((h, w, 4), np.float32)
         else:
@@ -197,11 +200,24 @@ class Renderer:
             if static is not None:  # nothing moves: every method's answer is the one sharp image
                 rgba = ctx.render_static(static).reshape(h, w, 4).astype(np.float32)
             else:
-                rgba = get_method(s.method)(ctx).reshape(h, w, 4).astype(np.float32)
+                if wants_aovs and s.method != "velocity" and (s.threads or default_threads()) > 1:
+                    # the Z/motion pass on a helper beside the method, from snapshots taken here
+                    # (USD is read on this thread only): it fills the cores the method's host
+                    # work leaves idle
+                    snapshots = ctx.aov_snapshots()
+                    _ = ctx.tables   # made here, not raced for by the helper and the method
+                    aov_job = Background(lambda: ctx.depth_motion(snapshots), "aovs")
+                try:
+                    rgba = get_method(s.method)(ctx).reshape(h, w, 4).astype(np.float32)
+                finally:
+                    if aov_job is not None and sys.exc_info()[0] is not None:
+                        aov_job.wait()   # the frame's buffers are released after: the helper is done first
         aovs: dict[str, np.ndarray] = {}
-        if shutter.exposed and ("Z" in s.aovs or "motion" in s.aovs):
+        if wants_aovs:
             if ctx.aov_motion is not None:  # the velocity method's own buffers (object + camera from depth)
                 depth, motion = ctx.aov_depth, ctx.aov_motion
+            elif aov_job is not None:
+                depth, motion = aov_job.result()
             else:
                 depth, motion = ctx.depth_motion()
             if "Z" in s.aovs:

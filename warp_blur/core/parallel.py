@@ -75,6 +75,10 @@ class Background(Generic[T]):
         self._thread = threading.Thread(target=run, name=f"warp_blur_{name}", daemon=True)
         self._thread.start()
 
+    def wait(self) -> None:
+        """Wait for fn() to end, whatever it returned or raised."""
+        self._thread.join()
+
     def result(self) -> T:
         """Wait for fn() and return what it returned (raise what it raised)."""
         self._thread.join()

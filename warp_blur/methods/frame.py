@@ -3,6 +3,7 @@ sharp passes (shading an instant; Z and motion AOVs at the shutter centre)."""
 
 from __future__ import annotations
 
+import threading
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -36,6 +37,9 @@ from ..usd.textures import texture_lod
 #: 16 segments keep a 90° turn within 6° per segment
 DOME_KNOTS = 17
 MOTION_PROBES = (0.0, 16 / 128, 32 / 128, 64 / 128, 79 / 128, 96 / 128, 1.0)
+_TIMINGS_LOCK = threading.Lock()
+#: the shutter fractions of the snapshots the Z/motion AOVs are rendered from (open, centre, close)
+AOV_FRACTIONS = (0.0, 0.5, 1.0)
 
 
 @dataclass
@@ -98,7 +102,8 @@ class FrameContext:
         try:
             yield
         finally:
-            self.timings[stage] = self.timings.get(stage, 0.0) + time.perf_counter() - t0
+            with _TIMINGS_LOCK:   # helper threads (shadows, AOVs) add to the frame's stages too
+                self.timings[stage] = self.timings.get(stage, 0.0) + time.perf_counter() - t0
 
     @property
     def num_pixels(self) -> int:
@@ -226,24 +231,26 @@ class FrameContext:
         return sh
 
     def bin(self, positions: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray,
-            entry_k1: np.ndarray) -> TileBins:
+            entry_k1: np.ndarray, counted: bool = True) -> TileBins:
         """Screen-tile bins of all entries, each tile's nearest first: a walk for the nearest hit
         stops at the first entry beyond it."""
-        return self.bin_groups(positions, entry_tri, entry_k0, entry_k1, [np.ones(len(entry_tri), bool)], True)[0]
+        return self.bin_groups(positions, entry_tri, entry_k0, entry_k1, [np.ones(len(entry_tri), bool)], True,
+                               counted)[0]
 
     def bin_groups(self, positions: np.ndarray, entry_tri: np.ndarray, entry_k0: np.ndarray, entry_k1: np.ndarray,
-                   groups: list[np.ndarray], nearest_first: bool = False) -> list[TileBins]:
+                   groups: list[np.ndarray], nearest_first: bool = False, counted: bool = True) -> list[TileBins]:
         """Separate screen-tile bins for each group (a boolean mask over the entries, shape (E,)),
         so a kernel can walk e.g. a tile's static entries apart from its moving ones; with
         nearest_first each tile's list runs in ascending nearest depth of its entries' vertices
-        (see bin_entries), else in entry order."""
+        (see bin_entries), else in entry order. counted: their pairs add to stats' bin_pairs."""
         with self.timed("binning"):
             boxes, keep, bands, near = entry_bounds(self.proj, positions, self.scene.tri_vertices, entry_tri,
                                                     entry_k0, entry_k1, SAMPLE_MARGIN_PX,
                                                     threads=self.settings.threads)
             near_depth = near if nearest_first else None
             out = [bin_entries(self.proj, boxes, keep & group, TILE_SIZE, near_depth, bands) for group in groups]
-        self.counters["bin_pairs"] = self.counters.get("bin_pairs", 0) + sum(b.num_pairs for b in out)
+        if counted:
+            self.counters["bin_pairs"] = self.counters.get("bin_pairs", 0) + sum(b.num_pairs for b in out)
         return out
 
     def dome_frame(self, fraction: float | None = None) -> tuple | None:
@@ -303,17 +310,19 @@ class FrameContext:
     def static_geometry(self, snapshots: list[Snapshot], knot: int,
                         triangles: np.ndarray | None = None,
                         velocities: np.ndarray | None = None, cull: bool = True,
-                        shaded: bool = True) -> tuple[Geometry, TileBins]:
+                        shaded: bool = True, counted: bool = True) -> tuple[Geometry, TileBins]:
         """Geometry with all snapshots as knots, and static entries at `knot` for visible triangles
         (of `triangles`, a (T,) mask, when given), moving with `velocities` for shadow lookups;
         back faces that cannot show dropped unless cull is False (raster/culling.py). Without
-        `shaded` it holds no normals (depth and motion only: the snapshots need none)."""
+        `shaded` it holds no normals (depth and motion only: the snapshots need none); without
+        `counted` its back faces and bin pairs stay out of the frame's counters (the AOVs' pass)."""
         positions = np.stack([s.positions for s in snapshots])
         normals = np.stack([s.normals for s in snapshots]) if self.scene.any_smooth and shaded else None
         tris, dropped = self.front_triangles(snapshots[knot], triangles, cull)
         k = np.full(len(tris), knot, np.int32)
-        self.counters["back_faces_dropped"] = dropped
-        bins = self.bin(positions, tris, k, k)
+        if counted:
+            self.counters["back_faces_dropped"] = dropped
+        bins = self.bin(positions, tris, k, k, counted)
         return make_geometry(self.tables, positions, normals, tris, k, k, velocities), bins
 
     def front_triangles(self, snapshot: Snapshot, triangles: np.ndarray | None = None,
@@ -521,12 +530,22 @@ class FrameContext:
                               self.settings.threads, bands_per_thread=FINE_BANDS)
         return run
 
+    def aov_snapshots(self) -> list[Snapshot]:
+        """The snapshots the Z/motion AOVs are rendered from (AOV_FRACTIONS), positions only:
+        static_frame's probes where they took them, the others taken now and kept with the probes
+        (where a method's motion plan reuses them)."""
+        for u in AOV_FRACTIONS:
+            if u not in self.probe_snapshots:
+                self.probe_snapshots[u] = self.snapshot(u, with_normals=u == 0.5)
+        return [self.probed_snapshot(u, with_normals=False) for u in AOV_FRACTIONS]
+
     def depth_motion(self, snapshots: list[Snapshot] | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Z (H, W) and motion (H, W, 2) AOVs of the surface seen at the shutter centre. Positions
-        only: the snapshots static_frame's probes took are reused, none needs normals."""
+        """Z (H, W) and motion (H, W, 2) AOVs of the surface seen at the shutter centre (snapshots:
+        aov_snapshots()'s, taken here when not given). Reads no USD and leaves the frame's
+        counters alone when given them, so it may run beside the method (api.py)."""
         if snapshots is None:
-            snapshots = [self.probed_snapshot(u, with_normals=False) for u in (0.0, 0.5, 1.0)]
-        geo, bins = self.static_geometry(snapshots, 1, shaded=False)
+            snapshots = self.aov_snapshots()
+        geo, bins = self.static_geometry(snapshots, 1, shaded=False, counted=False)
         view, b = self.view(bins), make_bins(bins, self.device)
         depth = wp.zeros(self.num_pixels, dtype=float, device=self.device)
         motion = wp.zeros(self.num_pixels, dtype=wp.vec2, device=self.device)
