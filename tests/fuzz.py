@@ -96,9 +96,10 @@ def mutants(count: int, seed: int, paths: list[str] | None = None):
 
 def render_args(scene: str, out: str, method: str, skip_invalid: bool = False) -> list[str]:
     """The CLI arguments a mutant renders with (with --skip-invalid: invalid prims are dropped,
-    so the renders go past them and through what drops them)."""
+    so the renders go past them and through what drops them); with the Z and motion AOVs, which
+    the API renders by default (beside the method, on a helper thread)."""
     return ["render", scene, "-o", out, "--method", method, "--resolution", "32x24", "--samples", "2",
-            "--shadow-map-size", "64", "--quiet"] + (["--skip-invalid"] if skip_invalid else [])
+            "--shadow-map-size", "64", "--aov", "Z,motion", "--quiet"] + (["--skip-invalid"] if skip_invalid else [])
 
 
 def judge(code: int, stderr: str, out: str) -> str:
@@ -109,8 +110,13 @@ def judge(code: int, stderr: str, out: str) -> str:
         import numpy as np
 
         from warp_blur.output.files import read_exr
-        img = read_exr(out)["RGBA"]
-        return "ok-render" if np.isfinite(img).all() else "non-finite pixels"
+        layers = read_exr(out)
+        if not np.isfinite(layers["RGBA"]).all():
+            return "non-finite pixels"
+        # Z is inf where nothing is seen (SPEC §1); motion is 0 there, finite everywhere
+        if not (np.isfinite(layers["motion.X"]).all() and np.isfinite(layers["motion.Y"]).all()):
+            return "non-finite motion"
+        return "ok-render"
     if code == 2:
         if os.path.exists(out):
             return "exit 2 left an output"
