@@ -26,6 +26,7 @@ from .core.errors import SettingsError, StageError, UserError
 from .output.exr_attributes import standard_attributes
 from .core.memory import check_frame_fits
 from .methods import KERNEL_MODULES, get_method
+from .methods.aovs import aov_snapshots, depth_motion
 from .core.preload import preload_modules
 from .usd.material_cache import MaterialCache
 from .usd.unit_cache import UnitCache
@@ -198,15 +199,15 @@ class Renderer:
             preload_modules(KERNEL_MODULES[s.method], ctx.device, s.threads)
             static = ctx.static_frame()
             if static is not None:  # nothing moves: every method's answer is the one sharp image
-                rgba = ctx.render_static(static).reshape(h, w, 4).astype(np.float32)
+                rgba = ctx.render_static(static, aovs=wants_aovs).reshape(h, w, 4).astype(np.float32)
             else:
                 if wants_aovs and s.method != "velocity" and (s.threads or default_threads()) > 1:
                     # the Z/motion pass on a helper beside the method, from snapshots taken here
                     # (USD is read on this thread only): it fills the cores the method's host
                     # work leaves idle
-                    snapshots = ctx.aov_snapshots()
+                    snapshots = aov_snapshots(ctx)
                     _ = ctx.tables   # made here, not raced for by the helper and the method
-                    aov_job = Background(lambda: ctx.depth_motion(snapshots), "aovs")
+                    aov_job = Background(lambda: depth_motion(ctx, snapshots), "aovs")
                 try:
                     rgba = get_method(s.method)(ctx).reshape(h, w, 4).astype(np.float32)
                 finally:
@@ -214,12 +215,12 @@ class Renderer:
                         aov_job.wait()   # the frame's buffers are released after: the helper is done first
         aovs: dict[str, np.ndarray] = {}
         if wants_aovs:
-            if ctx.aov_motion is not None:  # the velocity method's own buffers (object + camera from depth)
+            if ctx.aov_motion is not None:  # the velocity method's or a still frame's own buffers
                 depth, motion = ctx.aov_depth, ctx.aov_motion
             elif aov_job is not None:
                 depth, motion = aov_job.result()
             else:
-                depth, motion = ctx.depth_motion()
+                depth, motion = depth_motion(ctx)
             if "Z" in s.aovs:
                 aovs["Z"] = depth.astype(np.float32)
             if "motion" in s.aovs:

@@ -20,8 +20,9 @@ from ..kernels.kernel_types import Geometry
 from ..core import progress
 from ..core.affine import invert_affine
 from ..core.parallel import FINE_BANDS, launch_pixels
-from ..kernels.raster import (INSTANT_CACHE_SLOTS, record_nearest, render_depth_motion, render_over_recorded,
-                              render_over_recorded_instants, render_sharp, shade_recorded)
+from ..kernels.raster import (INSTANT_CACHE_SLOTS, record_nearest, render_over_recorded,
+                              render_over_recorded_instants, render_sharp, render_sharp_depth_motion,
+                              shade_recorded)
 from ..usd.scene import Scene, Snapshot
 from ..core.settings import RenderSettings
 from ..shadows.layout import Sample, ShadowOptions
@@ -38,8 +39,8 @@ from ..usd.textures import texture_lod
 DOME_KNOTS = 17
 MOTION_PROBES = (0.0, 16 / 128, 32 / 128, 64 / 128, 79 / 128, 96 / 128, 1.0)
 _TIMINGS_LOCK = threading.Lock()
-#: the shutter fractions of the snapshots the Z/motion AOVs are rendered from (open, centre, close)
-AOV_FRACTIONS = (0.0, 0.5, 1.0)
+#: tests switch this off to compare a still frame's Z and motion with those of their own pass
+STATIC_AOVS_IN_ONE_PASS = True
 
 
 @dataclass
@@ -154,10 +155,23 @@ class FrameContext:
                 return None
         return a
 
-    def render_static(self, snapshot: Snapshot) -> np.ndarray:
-        """(H*W, 4) sharp image of a frame where nothing moves (every method's exact answer)."""
+    def render_static(self, snapshot: Snapshot, aovs: bool = False) -> np.ndarray:
+        """(H*W, 4) sharp image of a frame where nothing moves (every method's exact answer). With
+        aovs (pixel centres only: one spatial sample), the Z and motion AOVs (motion 0: nothing
+        moves) come from the same visibility pass, kept in aov_depth and aov_motion, instead of a
+        pass of their own (aovs.depth_motion)."""
         rgba = wp.zeros((self.num_pixels, 4), dtype=float, device=self.device)
-        self.sharp_pass(snapshot, 1.0, rgba)
+        buffers = None
+        if aovs and self.settings.spatial_samples == 1 and STATIC_AOVS_IN_ONE_PASS:
+            buffers = (wp.zeros(self.num_pixels, dtype=float, device=self.device),
+                       wp.zeros(self.num_pixels, dtype=wp.vec2, device=self.device))
+        run, _hits = self.prepare_sharp_pass(snapshot, 1.0, rgba, aov_buffers=buffers)
+        if run is not None:
+            run()
+        if buffers is not None:
+            h, w = self.proj.height, self.proj.width
+            self.aov_depth = buffers[0].numpy().reshape(h, w).copy()
+            self.aov_motion = buffers[1].numpy().reshape(h, w, 2).copy()
         self.counters["static_frame"] = True
         return rgba.numpy()
 
@@ -353,13 +367,16 @@ class FrameContext:
 
     def prepare_sharp_pass(self, snapshot: Snapshot, weight: float, rgba: wp.array, pixels: np.ndarray | None = None,
                            record: bool = False, triangles: np.ndarray | None = None,
-                           cull: bool = True, whole_if_steady: bool = False
+                           cull: bool = True, whole_if_steady: bool = False,
+                           aov_buffers: tuple[wp.array, wp.array] | None = None
                            ) -> "tuple[Callable[[], None] | None, RecordedHits | None]":
         """sharp_pass in two steps: everything up to the launch now, and (run, hits): run()
         launches it (None: nothing to render); with record, hits (RecordedHits) hold the listed
         pixels' hits once run() has returned. whole_if_steady (with record, for still surfaces under
         lights that hold still): pixels whose shadow lookups read only texels that never change are
-        added at weight 1 and marked in hits.done (render_sharp's record = 2)."""
+        added at weight 1 and marked in hits.done (render_sharp's record = 2). aov_buffers (every
+        pixel at weight 1, one spatial sample, no record): (depth, motion) written by the same
+        visibility pass (render_sharp_depth_motion; motion 0, the snapshot being one knot)."""
         if pixels is not None and len(pixels) == 0:
             return None, None
         sh = self.shading([snapshot])
@@ -380,6 +397,14 @@ class FrameContext:
         mode = 2 if whole else (1 if record else 0)
 
         def run() -> None:
+            if aov_buffers is not None:
+                assert pixels is None and not record and weight == 1.0 and subs == 1
+                no_gather = wp.zeros(0, dtype=wp.vec2, device=dev)
+                with self.timed("render"):
+                    launch_pixels(render_sharp_depth_motion, count,
+                                  lambda first, _n: [view, geo, sh, b, u, 0, 0, first, rgba, *aov_buffers, no_gather],
+                                  dev, self.settings.threads, bands_per_thread=FINE_BANDS)
+                return
             with self.timed("render"):
                 launch_pixels(render_sharp, count,
                               lambda first, _n: [view, geo, sh, b, u, weight, listed, 0 if pixels is None else 1,
@@ -529,30 +554,3 @@ class FrameContext:
                                                  hits.entries, hits.hits, colors, kept_flags, rgba], self.device,
                               self.settings.threads, bands_per_thread=FINE_BANDS)
         return run
-
-    def aov_snapshots(self) -> list[Snapshot]:
-        """The snapshots the Z/motion AOVs are rendered from (AOV_FRACTIONS), positions only:
-        static_frame's probes where they took them, the others taken now and kept with the probes
-        (where a method's motion plan reuses them)."""
-        for u in AOV_FRACTIONS:
-            if u not in self.probe_snapshots:
-                self.probe_snapshots[u] = self.snapshot(u, with_normals=u == 0.5)
-        return [self.probed_snapshot(u, with_normals=False) for u in AOV_FRACTIONS]
-
-    def depth_motion(self, snapshots: list[Snapshot] | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Z (H, W) and motion (H, W, 2) AOVs of the surface seen at the shutter centre (snapshots:
-        aov_snapshots()'s, taken here when not given). Reads no USD and leaves the frame's
-        counters alone when given them, so it may run beside the method (api.py)."""
-        if snapshots is None:
-            snapshots = self.aov_snapshots()
-        geo, bins = self.static_geometry(snapshots, 1, shaded=False, counted=False)
-        view, b = self.view(bins), make_bins(bins, self.device)
-        depth = wp.zeros(self.num_pixels, dtype=float, device=self.device)
-        motion = wp.zeros(self.num_pixels, dtype=wp.vec2, device=self.device)
-        no_gather = wp.zeros(0, dtype=wp.vec2, device=self.device)
-        with self.timed("aovs"):
-            launch_pixels(render_depth_motion, self.num_pixels,
-                          lambda first, _n: [view, geo, b, 0.5, 0, 2, first, depth, motion, no_gather],
-                          self.device, self.settings.threads)
-        h, w = self.proj.height, self.proj.width
-        return depth.numpy().reshape(h, w), motion.numpy().reshape(h, w, 2)
