@@ -1,5 +1,6 @@
 """What every method shares for one frame: the scene, camera, shutter, device tables, and the
-sharp passes (shading an instant; Z and motion AOVs at the shutter centre)."""
+sharp passes (shading an instant; a still frame's Z and motion AOVs from its own pass; the AOVs'
+pass of their own is aovs.py's)."""
 
 from __future__ import annotations
 

@@ -246,8 +246,7 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
         with ctx.timed("render"):
             launch_pixels(render_sharp_depth_motion, ctx.num_pixels,
                           lambda first, _n: [view, geo, sh, b, u, 0, 2, first, sharp, depth_w, motion_w, gather_w],
-                          dev,
-                          s.threads)
+                          dev, s.threads)
         if ctx.scene.any_fractional:
             fractional = ctx.scene.tri_fractional[tris]
             pixels = (presence_pixels(tile_bins, fractional, view.tile_size, w, h) if PRESENCE_TILES
