@@ -49,7 +49,7 @@ def test_the_package_modules_are_built_with_references(tmp_path):
     wb.render(path, frame=1, method="stochastic", samples=2, resolution=(32, 24), aovs=())
     assert struct_refs.installed()   # by warp_blur.kernels, before any of its modules was defined
     module = wp.get_module("warp_blur.kernels.raster")
-    assert module.options.get(struct_refs.OPTION) == 1
+    assert module.options.get(struct_refs.OPTION) == struct_refs.LEVEL
     block_dim = next(iter(module.execs))[1]          # the CPU build's (one thread per block)
     ident = module.get_module_identifier(block_dim=block_dim)
     source = open(os.path.join(wp.config.kernel_cache_dir, ident, ident + ".cpp")).read()
@@ -82,3 +82,42 @@ def test_warp_code_outside_the_package_keeps_passing_structs_by_value():
     assert list(out.numpy()) == [10.0, 20.0]
     assert struct_refs.OPTION not in wp.get_module(__name__).options
     assert np.isfinite(out.numpy()).all()
+
+
+KERNEL_ARGS = """    //---------
+    // argument vars
+    View_a6a9bfbf var_view = _wp_args->view;
+    Shading_1aa40241 var_sh = _wp_args->sh;
+    wp::float32 var_u = _wp_args->u;
+    wp::array_t<wp::float32> var_rgba = _wp_args->rgba;
+    Shading_1aa40241 adj_sh = _wp_adj_args->sh;
+    Shading_1aa40241 var_12;
+"""
+
+
+def test_a_cpu_kernels_struct_arguments_are_bound_by_reference_not_copied_per_thread():
+    """A CPU kernel's body copied each struct argument out of the launch's argument block once per
+    thread index (per pixel); they are bound as references now, and nothing else changes."""
+    out = struct_refs.kernel_args_by_reference(KERNEL_ARGS)
+    assert "    View_a6a9bfbf& var_view = _wp_args->view;\n    Shading_1aa40241& var_sh = _wp_args->sh;\n" in out
+    assert "    wp::float32 var_u = _wp_args->u;\n    wp::array_t<wp::float32> var_rgba = _wp_args->rgba;\n" in out
+    assert "    Shading_1aa40241 adj_sh = _wp_adj_args->sh;\n    Shading_1aa40241 var_12;\n" in out
+    assert out.count("&") == 2
+
+
+def test_the_package_kernels_bind_their_struct_arguments_by_reference(tmp_path):
+    """In the sharp rasterizer's generated C++ (a render builds it), render_sharp binds View,
+    Geometry, Shading and Bins by reference; the module carries the level that says so."""
+    if os.environ.get("WARP_BLUR_STRUCT_REFS") == "0":
+        pytest.skip("struct references switched off for this run (WARP_BLUR_STRUCT_REFS=0)")
+    from scenes import shadow_stage
+    path = shadow_stage(str(tmp_path / "s.usda"))
+    wb.render(path, frame=1, method="accumulation", samples=2, resolution=(32, 24), aovs=())
+    module = wp.get_module("warp_blur.kernels.raster")
+    block_dim = next(iter(module.execs))[1]
+    ident = module.get_module_identifier(block_dim=block_dim)
+    source = open(os.path.join(wp.config.kernel_cache_dir, ident, ident + ".cpp")).read()
+    body = source[source.index("render_sharp_"):]
+    body = body[body.index("// argument vars"):body.index("// primal vars")]
+    for name in ("view", "geo", "sh", "bins"):
+        assert f"& var_{name} = _wp_args->{name};" in body
