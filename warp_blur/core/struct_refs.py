@@ -14,8 +14,9 @@ accumulation frame's CPU time on demo (memcpy called from render_sharp). Those l
 references instead (`View& var_view = _wp_args->view;`); the kernels never assign to them either.
 
 Only functions and kernels defined in warp_blur get references (other Warp code in the process
-keeps Warp's semantics). warp_blur's modules carry an extra option, so their cache key differs from that of
-binaries built without references. WARP_BLUR_STRUCT_REFS=0 switches it off (for A/B timing).
+keeps Warp's semantics). warp_blur's modules carry an extra option, so their cache key differs
+from that of binaries built without references. WARP_BLUR_STRUCT_REFS=0 switches it off (for A/B
+timing).
 """
 
 from __future__ import annotations
