@@ -210,9 +210,10 @@ class Renderer:
                     aov_job = Background(lambda: depth_motion(ctx, snapshots), "aovs")
                 try:
                     rgba = get_method(s.method)(ctx).reshape(h, w, 4).astype(np.float32)
-                finally:
-                    if aov_job is not None and sys.exc_info()[0] is not None:
+                except BaseException:
+                    if aov_job is not None:
                         aov_job.wait()   # the frame's buffers are released after: the helper is done first
+                    raise
         aovs: dict[str, np.ndarray] = {}
         if wants_aovs:
             if ctx.aov_motion is not None:  # the velocity method's or a still frame's own buffers
