@@ -261,9 +261,9 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
     threads = s.threads
     with ctx.timed("velocity"):
         if camera_moves:
-            for buffer, half_seen in ((motion_w, False), (gather_w, True)):
-                camera_motion(depth_w, buffer, ctx.proj, invert_affine(cfw[1]) @ cfw[0],
-                              invert_affine(cfw[1]) @ cfw[2], dev, threads, half_seen=half_seen)
+            # the motion AOV and the blur's velocity (half_seen) from one pass
+            camera_motion(depth_w, motion_w, ctx.proj, invert_affine(cfw[1]) @ cfw[0],
+                          invert_affine(cfw[1]) @ cfw[2], dev, threads, seen_motion=gather_w)
         # copies: the device buffers go back to the allocator when the frame ends
         depth = depth_w.numpy().reshape(h, w).copy()
         ctx.aov_depth = depth

@@ -42,16 +42,18 @@ def raster_of(p: wp.vec3, window: wp.vec4, width: float, height: float, ortho: i
 
 @wp.kernel(enable_backward=False)
 def add_camera_motion(depth: wp.array(dtype=float), width: int, height: int, window: wp.vec4, ortho: int,
-                      open_from_center: wp.mat44, close_from_center: wp.mat44, half_seen: int, first: int,
+                      open_from_center: wp.mat44, close_from_center: wp.mat44, half_seen: int, both: int,
+                      first: int,
                       # in and out
-                      motion: wp.array(dtype=wp.vec2)):
+                      motion: wp.array(dtype=wp.vec2), seen_motion: wp.array(dtype=wp.vec2)):
     """motion[pix] += the screen motion (pixels, open -> close) of the static point seen at
     depth[pix] (view depth; inf where nothing is hit), from the camera's motion alone: unprojected
     with the centre camera, reprojected with the open and close cameras (row vectors: p @ M). Where
     nothing is hit, the pixel's ray direction (the dome turns with the camera; nothing in an
     orthographic view or where the turn reaches 90°). A point behind the eye at open or close adds
     nothing, or with half_seen (the velocity method's blur) twice its motion over the half of the
-    shutter it is seen in (at the centre it is where the pixel is)."""
+    shutter it is seen in (at the centre it is where the pixel is). both = 1: motion gets the first
+    rule and seen_motion the half_seen one, from one projection of the point."""
     pix = first + wp.tid()
     wf = float(width)
     hf = float(height)
@@ -82,14 +84,23 @@ def add_camera_motion(depth: wp.array(dtype=float), width: int, height: int, win
     if ra[2] == 0.0 and rb[2] == 0.0:
         return
     if ra[2] == 0.0 or rb[2] == 0.0:
-        if half_seen == 0 or far:
+        # seen at one end only: no motion AOV; the blur's is twice that of the half it is seen in
+        if far or (half_seen == 0 and both == 0):
             return
         if ra[2] != 0.0:
             m = 2.0 * wp.vec2(px - ra[0], py - ra[1])
         else:
             m = 2.0 * wp.vec2(rb[0] - px, rb[1] - py)
+        if wp.isfinite(m[0]) and wp.isfinite(m[1]):
+            if both != 0:
+                seen_motion[pix] = seen_motion[pix] + m
+            else:
+                motion[pix] = motion[pix] + m
+        return
     if wp.isfinite(m[0]) and wp.isfinite(m[1]):
         motion[pix] = motion[pix] + m
+        if both != 0:
+            seen_motion[pix] = seen_motion[pix] + m
 
 
 @wp.kernel(enable_backward=False)
@@ -206,17 +217,21 @@ def neighbour_max(tmax: wp.array(dtype=wp.vec2), tiles_x: int, tiles_y: int, fir
 
 def camera_motion(depth: wp.array, motion: wp.array, proj: Projection, open_from_center: np.ndarray,
                   close_from_center: np.ndarray, device: str, threads: int | None = None,
-                  half_seen: bool = False) -> None:
+                  half_seen: bool = False, seen_motion: wp.array | None = None) -> None:
     """Add to motion ((H*W,) vec2, pixels over the shutter) the camera's motion reconstructed from
     depth ((H*W,) view depth, inf where nothing is hit); the matrices (4, 4 float64, row vectors)
-    take centre-camera points to the open and close cameras. half_seen: add_camera_motion's."""
+    take centre-camera points to the open and close cameras. half_seen: add_camera_motion's. With
+    seen_motion (like motion), the same pass adds to it the half_seen form (the velocity method's
+    blur beside its motion AOV: one projection of each pixel for both)."""
     w, h = proj.width, proj.height
     window = wp.vec4(*(float(c) for c in proj.window))
     m0 = wp.mat44(*np.asarray(open_from_center, np.float64).ravel().astype(np.float32))
     m1 = wp.mat44(*np.asarray(close_from_center, np.float64).ravel().astype(np.float32))
+    both = int(seen_motion is not None)
+    second = seen_motion if seen_motion is not None else motion
     launch_pixels(add_camera_motion, w * h,
-                  lambda first, _n: [depth, w, h, window, int(proj.orthographic), m0, m1, int(half_seen), first,
-                                     motion],
+                  lambda first, _n: [depth, w, h, window, int(proj.orthographic), m0, m1, int(half_seen), both,
+                                     first, motion, second],
                   device, threads)
 
 
