@@ -121,3 +121,59 @@ def test_the_package_kernels_bind_their_struct_arguments_by_reference(tmp_path):
     body = body[body.index("// argument vars"):body.index("// primal vars")]
     for name in ("view", "geo", "sh", "bins"):
         assert f"& var_{name} = _wp_args->{name};" in body
+
+
+CONTIGUOUS_BODY = """{
+    static constexpr bool wp_linear_tid = wp_linear_contiguous;
+    wp_args_classify_samples_0f029478 wp_contiguous_args;
+    if constexpr (wp_linear_contiguous)
+    {
+        wp_contiguous_args = *_wp_args;
+        wp_contiguous_args.listed.strides[0] = sizeof(wp::int32);
+        wp_contiguous_args.rgba.strides[1] = sizeof(wp::float32);
+        _wp_args = &wp_contiguous_args;
+    }
+    //---------
+    // argument vars
+    View_a6a9bfbf& var_view = _wp_args->view;
+    wp::int32 var_first = _wp_args->first;
+    wp::array_t<wp::int32> var_listed = _wp_args->listed;
+    wp::array_t<wp::float32> var_rgba = _wp_args->rgba;
+    //---------
+"""
+
+
+def test_a_contiguous_launch_sets_its_arrays_strides_instead_of_copying_its_argument_block():
+    """Warp's contiguous specialization copied the whole argument block (structs included) per
+    thread index to give the arrays constant strides; the strides are set on the kernel's own
+    array copies instead, under the same condition, and the block is read in place."""
+    out = struct_refs.contiguous_strides_in_place(CONTIGUOUS_BODY)
+    assert "wp_contiguous_args" not in out
+    assert ("    wp::array_t<wp::int32> var_listed = _wp_args->listed;\n"
+            "    if constexpr (wp_linear_contiguous) var_listed.strides[0] = sizeof(wp::int32);\n"
+            "    wp::array_t<wp::float32> var_rgba = _wp_args->rgba;\n"
+            "    if constexpr (wp_linear_contiguous) var_rgba.strides[1] = sizeof(wp::float32);\n") in out
+    assert "    View_a6a9bfbf& var_view = _wp_args->view;\n    wp::int32 var_first = _wp_args->first;\n" in out
+    # an array argument bound some other way: Warp's code is left as it is
+    odd = CONTIGUOUS_BODY.replace("var_rgba = _wp_args->rgba", "var_rgba = other")
+    assert struct_refs.contiguous_strides_in_place(odd) == odd
+    assert struct_refs.contiguous_strides_in_place(KERNEL_ARGS) == KERNEL_ARGS
+
+
+def test_classify_samples_reads_its_argument_block_in_place(tmp_path):
+    """The analytic classify pass (all its arrays one-dimensional: Warp gives it the contiguous
+    specialization) no longer copies View, Geometry and two Bins per pixel; its image is the
+    one the pass always gave (the analytic-vs-accumulation tests check that)."""
+    if os.environ.get("WARP_BLUR_STRUCT_REFS") == "0":
+        pytest.skip("struct references switched off for this run (WARP_BLUR_STRUCT_REFS=0)")
+    from scenes import shadow_stage
+    path = shadow_stage(str(tmp_path / "s.usda"))
+    wb.render(path, frame=1, method="analytic", resolution=(32, 24), aovs=())
+    module = wp.get_module("warp_blur.methods.analytic.intervals")
+    block_dim = next(iter(module.execs))[1]
+    ident = module.get_module_identifier(block_dim=block_dim)
+    source = open(os.path.join(wp.config.kernel_cache_dir, ident, ident + ".cpp")).read()
+    body = source[source.index("classify_samples_"):]
+    body = body[:body.index("// primal vars")]
+    assert "wp_contiguous_args" not in body
+    assert "if constexpr (wp_linear_contiguous) var_listed.strides[0] = sizeof(wp::int32);" in body

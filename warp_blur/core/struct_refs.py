@@ -12,6 +12,11 @@ argument out of the launch's argument block (`View var_view = _wp_args->view;`):
 View, Geometry, Shading and Bins structs (2.3 KB in render_sharp), which were 11% of an
 accumulation frame's CPU time on demo (memcpy called from render_sharp). Those lines bind
 references instead (`View& var_view = _wp_args->view;`); the kernels never assign to them either.
+A kernel whose arrays are all one-dimensional also gets, from Warp, a copy of its whole argument
+block per thread index when they are contiguous (so that their strides read as constants): in
+classify_samples that is View, Geometry and two Bins per pixel. There the constant strides are
+set on the kernel's own copies of its array arguments instead (`var_listed.strides[0] = ...`),
+and the block is not copied.
 
 Only functions and kernels defined in warp_blur get references (other Warp code in the process
 keeps Warp's semantics). warp_blur's modules carry an extra option, so their cache key differs
@@ -28,11 +33,23 @@ import re
 _STRUCT_PARAM = re.compile(r"^(\s+)([A-Za-z_]\w*_[0-9a-f]{8}) (var_\w+)(,|\))$", re.M)
 #: a CPU kernel's copy of a struct argument out of its launch's argument block
 _STRUCT_ARG_COPY = re.compile(r"^(\s+)([A-Za-z_]\w*_[0-9a-f]{8}) (var_\w+) = _wp_args->(\w+);$", re.M)
+#: a CPU kernel's per-thread copy of its argument block where its arrays are contiguous, and the
+#: constant strides the copy is made for
+_CONTIGUOUS_COPY = re.compile(
+    r"^\s+wp_args_\w+ wp_contiguous_args;\n"
+    r"\s+if constexpr \(wp_linear_contiguous\)\n"
+    r"\s+\{\n"
+    r"\s+wp_contiguous_args = \*_wp_args;\n"
+    r"((?:\s+wp_contiguous_args\.\w+\.strides\[\d+\] = [^;\n]+;\n)*)"
+    r"\s+_wp_args = &wp_contiguous_args;\n"
+    r"\s+\}\n", re.M)
+_STRIDE = re.compile(r"wp_contiguous_args\.(\w+)\.(strides\[\d+\]) = ([^;\n]+);")
 #: module option marking binaries built with references (part of Warp's module hash)
 OPTION = "warp_blur_struct_refs"
-#: its value: 2 since the CPU kernels' arguments are references too (a new hash: binaries built
-#: before, with per-thread copies, are not taken from the kernel cache)
-LEVEL = 2
+#: its value: 3 since contiguous kernels set their arrays' strides instead of copying their argument
+#: block per thread (2: the CPU kernels' struct arguments are references; a new value is a new hash,
+#: so binaries built before are not taken from the kernel cache)
+LEVEL = 3
 _installed = False
 
 
@@ -46,6 +63,26 @@ def kernel_args_by_reference(source: str) -> str:
     launch's argument block instead of copied out of it per thread index (the adjoint block's
     are left as they are)."""
     return _STRUCT_ARG_COPY.sub(r"\1\2& \3 = _wp_args->\4;", source)
+
+
+def contiguous_strides_in_place(source: str) -> str:
+    """Generated C++ of a CPU kernel whose contiguous launch copied its whole argument block per
+    thread index to give its arrays constant strides: the strides are set on the kernel's own
+    copies of those arrays instead (`var_a.strides[0] = sizeof(...)`, under the same
+    `if constexpr (wp_linear_contiguous)`), and the block is read in place. Unchanged when the
+    pattern is not found."""
+    match = _CONTIGUOUS_COPY.search(source)
+    if match is None:
+        return source
+    strides = _STRIDE.findall(match.group(1))
+    out = source[:match.start()] + source[match.end():]
+    for name, which, value in strides:
+        line = re.search(rf"^(\s+)[^\n]* var_{name} = _wp_args->{name};\n", out, re.M)
+        if line is None:
+            return source   # an array argument not bound where expected: leave Warp's code as it is
+        out = (out[:line.end()] + f"{line.group(1)}if constexpr (wp_linear_contiguous) var_{name}.{which} = {value};\n"
+               + out[line.end():])
+    return out
 
 
 def _ours(name: str | None) -> bool:
@@ -75,7 +112,9 @@ def install() -> bool:
     def codegen_kernel(kernel, device, options):
         source = generate_kernel(kernel, device=device, options=options)
         ours = _ours(getattr(getattr(kernel, "module", None), "name", None))
-        return kernel_args_by_reference(source) if ours and device == "cpu" else source
+        if not ours or device != "cpu":
+            return source
+        return contiguous_strides_in_place(kernel_args_by_reference(source))
 
     def init(self, name, *args, **kwargs):
         module_init(self, name, *args, **kwargs)
