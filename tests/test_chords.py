@@ -46,3 +46,28 @@ def test_screen_paths_and_chord_errors_equal_numpys(ortho):
         raise_chord_errors(proj, a, b, truth, f, idx, err, threads=2)
     np.testing.assert_allclose(err, want, rtol=1e-12)
     assert (err > start).any() and (err == start).any()
+
+
+@pytest.mark.parametrize("ortho", [False, True])
+def test_few_vertices_take_numpys_passes_with_the_kernels_results(ortho, monkeypatch):
+    """Below NUMPY_BELOW vertices the planner's passes run in NumPy (a launch's set-up costs more
+    there): the same paths and chord errors as the kernels, non-finite distances inf alike."""
+    from warp_blur.methods.analytic import chords
+    rng = np.random.default_rng(5 + int(ortho))
+    proj = Projection(ortho, (-0.7, -0.5, 0.7, 0.5), 0.1, 1000.0, 320, 240)
+    n = 300
+    probes = [_points(rng, n) for _ in range(3)]
+    probes[1][7] = np.nan
+    idx = np.sort(rng.choice(n, 120, replace=False)).astype(np.int64)
+    idx[0] = 7
+    results = []
+    for below in (chords.NUMPY_BELOW, 0):   # NumPy, then the kernels
+        monkeypatch.setattr(chords, "NUMPY_BELOW", below)
+        err = np.zeros(len(idx))
+        for f in (0.25, 0.5):
+            raise_chord_errors(proj, probes[0], probes[1], probes[2], f, idx, err)
+        results.append((screen_path_px(proj, probes), err))
+    (path_np, err_np), (path_k, err_k) = results
+    np.testing.assert_allclose(path_np, path_k, rtol=1e-12)
+    np.testing.assert_allclose(err_np, err_k, rtol=1e-12)
+    assert err_np[0] == np.inf and path_np[7] == np.inf

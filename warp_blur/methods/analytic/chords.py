@@ -5,7 +5,9 @@ probes (its error tolerance) and how far each candidate segment's chord strays f
 position at the check points. In NumPy each measurement was ~10 passes over (V, 3) arrays and a
 gathered copy of the positions; with 1000 particle spheres (640 k vertices) the planner took
 0.55 s of the frame, before the shadow maps could start. Here each is one pass that reads the
-snapshots' arrays in place. tests/test_chords.py keeps the NumPy form as the oracle.
+snapshots' arrays in place; below NUMPY_BELOW vertices the same formula runs in NumPy, whose few
+passes over a few points cost less than a launch's set-up. tests/test_chords.py keeps the NumPy
+form as the oracle.
 """
 
 from __future__ import annotations
@@ -60,6 +62,24 @@ def max_chord_error(a: wp.array(dtype=wp.vec3d), b: wp.array(dtype=wp.vec3d), tr
     err[i] = wp.max(err[i], screen_px(truth[v], approx, ortho, near, ppu))
 
 
+#: vertices below which the planner's passes run in NumPy instead: a launch's set-up (array views of
+#: the snapshots, argument packing, the pool) costs more than a few NumPy passes over so few points
+#: (rotation's draft makes 37 checks a frame over 40 vertices: 74 µs each as launches)
+NUMPY_BELOW = 4096
+
+
+def screen_px_numpy(proj: Projection, p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """screen_px over (N, 3) float64 arrays of points, as the kernel computes it."""
+    d = p - q
+    with np.errstate(invalid="ignore", over="ignore"):
+        if proj.orthographic:
+            dist = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) * proj.pixels_per_unit
+        else:
+            depth = np.maximum(np.minimum(-p[:, 2], -q[:, 2]), proj.near)
+            dist = np.sqrt(np.einsum("ij,ij->i", d, d)) / depth * proj.pixels_per_unit
+    return np.where(np.isnan(dist), np.inf, dist)
+
+
 def _camera(proj: Projection) -> list:
     return [int(proj.orthographic), wp.float64(proj.near), wp.float64(proj.pixels_per_unit)]
 
@@ -68,6 +88,10 @@ def screen_path_px(proj: Projection, probes: list[np.ndarray], threads: int | No
     """(V,) each vertex's screen path (pixels) through the probes' positions ((V, 3) each, in order)."""
     n = len(probes[0])
     total = np.zeros(n, np.float64)
+    if n < NUMPY_BELOW:
+        for a, b in zip(probes, probes[1:]):
+            total += screen_px_numpy(proj, np.asarray(b, np.float64), np.asarray(a, np.float64))
+        return total
     out = wp.array(total, dtype=wp.float64, device="cpu", copy=False)
     for a, b in zip(probes, probes[1:]):
         fixed = [vec3d_array(a), vec3d_array(b), *_camera(proj)]
@@ -83,6 +107,11 @@ def raise_chord_errors(proj: Projection, a: np.ndarray, b: np.ndarray, truth: np
     if len(idx) == 0:
         return
     assert err.dtype == np.float64 and err.flags.c_contiguous
+    if len(idx) < NUMPY_BELOW:
+        pa = np.asarray(a, np.float64)[idx]
+        approx = pa + f * (np.asarray(b, np.float64)[idx] - pa)
+        np.maximum(err, screen_px_numpy(proj, np.asarray(truth, np.float64)[idx], approx), out=err)
+        return
     out = wp.array(err, dtype=wp.float64, device="cpu", copy=False)
     fixed = [vec3d_array(a), vec3d_array(b), vec3d_array(truth), int32_array(idx), wp.float64(f), *_camera(proj)]
     launch_pixels(max_chord_error, len(idx), lambda first, _n: [*fixed, first, out], "cpu",
