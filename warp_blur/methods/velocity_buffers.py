@@ -21,23 +21,31 @@ STILL_PX = wp.constant(1.0e-3)
 
 
 @wp.func
-def raster_of(p: wp.vec3, window: wp.vec4, width: float, height: float, ortho: int) -> wp.vec3:
-    """(x, y, ok) raster position in pixels (x right, y down) of camera-space point p; ok = 0
-    where p is not in front of the eye (a perspective view: it has no place on screen, as
-    kernels/raster.to_raster says of object motion) or the position is not finite."""
-    wx = p[0]
-    wy = p[1]
+def finite(x: float) -> bool:
+    """x is neither inf nor nan (a comparison, where wp.isfinite calls a double-precision
+    function out of line)."""
+    return wp.abs(x) <= 3.4028234663852886e38
+
+
+@wp.func
+def raster_of(x: float, y: float, z: float, window: wp.vec4, width: float, height: float, ortho: int):
+    """(x, y, ok) raster position in pixels (x right, y down) of camera-space point (x, y, z); ok
+    = 0.0 where the point is not in front of the eye (a perspective view: it has no place on
+    screen, as kernels/raster.to_raster says of object motion) or the position is not finite.
+    Scalars in and out: vectors assembled a component at a time stall the CPU's stores."""
+    wx = x
+    wy = y
     if ortho == 0:
-        depth = -p[2]
+        depth = -z
         if depth <= 0.0:
-            return wp.vec3(0.0, 0.0, 0.0)
-        wx = p[0] / depth
-        wy = p[1] / depth
+            return 0.0, 0.0, 0.0
+        wx = x / depth
+        wy = y / depth
     rx = (wx - window[0]) / (window[2] - window[0]) * width
     ry = (window[3] - wy) / (window[3] - window[1]) * height
-    if wp.isfinite(rx) and wp.isfinite(ry):
-        return wp.vec3(rx, ry, 1.0)
-    return wp.vec3(0.0, 0.0, 0.0)
+    if finite(rx) and finite(ry):
+        return rx, ry, 1.0
+    return 0.0, 0.0, 0.0
 
 
 @wp.kernel(enable_backward=False)
@@ -62,45 +70,59 @@ def add_camera_motion(depth: wp.array(dtype=float), width: int, height: int, win
     wx = window[0] + (px / wf) * (window[2] - window[0])
     wy = window[3] - (py / hf) * (window[3] - window[1])
     z = depth[pix]
-    far = not wp.isfinite(z)
-    p = wp.vec4(0.0, 0.0, 0.0, 1.0)
+    far = not finite(z)
+    # the centre camera's point (x, y, zc, w) as scalars (built as vectors a component at a time,
+    # it stalled the stores: 44 ns a pixel)
+    x = wx * z
+    y = wy * z
+    zc = -z
+    w = float(1.0)
     if far:
         if ortho != 0:
             return
-        p = wp.vec4(wx, wy, -1.0, 0.0)
+        x = wx
+        y = wy
+        zc = -1.0
+        w = 0.0
     elif ortho != 0:
-        p = wp.vec4(wx, wy, -z, 1.0)
-    else:
-        p = wp.vec4(wx * z, wy * z, -z, 1.0)
-    q0 = p * open_from_center
-    q1 = p * close_from_center
-    a = wp.vec3(q0[0], q0[1], q0[2])
-    b = wp.vec3(q1[0], q1[1], q1[2])
-    if far and (a[2] >= 0.0 or b[2] >= 0.0):
+        x = wx
+        y = wy
+    m0 = open_from_center
+    m1 = close_from_center
+    a0 = x * m0[0, 0] + y * m0[1, 0] + zc * m0[2, 0] + w * m0[3, 0]
+    a1 = x * m0[0, 1] + y * m0[1, 1] + zc * m0[2, 1] + w * m0[3, 1]
+    a2 = x * m0[0, 2] + y * m0[1, 2] + zc * m0[2, 2] + w * m0[3, 2]
+    b0 = x * m1[0, 0] + y * m1[1, 0] + zc * m1[2, 0] + w * m1[3, 0]
+    b1 = x * m1[0, 1] + y * m1[1, 1] + zc * m1[2, 1] + w * m1[3, 1]
+    b2 = x * m1[0, 2] + y * m1[1, 2] + zc * m1[2, 2] + w * m1[3, 2]
+    if far and (a2 >= 0.0 or b2 >= 0.0):
         return
-    ra = raster_of(a, window, wf, hf, ortho)
-    rb = raster_of(b, window, wf, hf, ortho)
-    m = wp.vec2(rb[0] - ra[0], rb[1] - ra[1])
-    if ra[2] == 0.0 and rb[2] == 0.0:
+    rax, ray, oka = raster_of(a0, a1, a2, window, wf, hf, ortho)
+    rbx, rby, okb = raster_of(b0, b1, b2, window, wf, hf, ortho)
+    mx = rbx - rax
+    my = rby - ray
+    if oka == 0.0 and okb == 0.0:
         return
-    if ra[2] == 0.0 or rb[2] == 0.0:
+    if oka == 0.0 or okb == 0.0:
         # seen at one end only: no motion AOV; the blur's is twice that of the half it is seen in
         if far or (half_seen == 0 and both == 0):
             return
-        if ra[2] != 0.0:
-            m = 2.0 * wp.vec2(px - ra[0], py - ra[1])
+        if oka != 0.0:
+            mx = 2.0 * (px - rax)
+            my = 2.0 * (py - ray)
         else:
-            m = 2.0 * wp.vec2(rb[0] - px, rb[1] - py)
-        if wp.isfinite(m[0]) and wp.isfinite(m[1]):
+            mx = 2.0 * (rbx - px)
+            my = 2.0 * (rby - py)
+        if finite(mx) and finite(my):
             if both != 0:
-                seen_motion[pix] = seen_motion[pix] + m
+                seen_motion[pix] = seen_motion[pix] + wp.vec2(mx, my)
             else:
-                motion[pix] = motion[pix] + m
+                motion[pix] = motion[pix] + wp.vec2(mx, my)
         return
-    if wp.isfinite(m[0]) and wp.isfinite(m[1]):
-        motion[pix] = motion[pix] + m
+    if finite(mx) and finite(my):
+        motion[pix] = motion[pix] + wp.vec2(mx, my)
         if both != 0:
-            seen_motion[pix] = seen_motion[pix] + m
+            seen_motion[pix] = seen_motion[pix] + wp.vec2(mx, my)
 
 
 @wp.kernel(enable_backward=False)
