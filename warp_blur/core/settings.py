@@ -24,11 +24,12 @@ QUALITY_PRESETS: dict[str, dict[str, dict[str, float]]] = {
     "stochastic": {"draft": {"samples": 16}, "preview": {"samples": 64}, "final": {"samples": 256}},
     "analytic": {
         # the draft linearises motion more coarsely (fewer motion segments, so fewer prisms): its
-        # coverage is what costs, not its resolve (bench_tradeoff, issue 18). 128 bits, not 64
-        # (nor 32): 0-6% more time on the six bench scenes, the error 1.0-1.8x lower (session 55;
-        # 64 against 32 in session 53: the same time within noise, `large` +7%, 1.1-2.5x lower)
-        "draft": {"time_bits": 128, "samples": 2, "segment_error_px": 1.0, "segment_time_error": 0.004},
-        "preview": {"time_bits": 128, "samples": 4, "segment_error_px": 0.5, "segment_time_error": 0.002},
+        # coverage is what costs, not its resolve (bench_tradeoff, issue 18). 256 bits, not 128:
+        # -1 to +6% time on the six bench scenes in alternated rounds, the error 1.0-4.1x lower
+        # (session 63; 128 against 64 in session 55: 0-6% more time, 1.0-1.8x lower). Preview's 256
+        # likewise: +1 to +7%, 1.0-4.1x lower; 512 would cost it what final costs on rotation
+        "draft": {"time_bits": 256, "samples": 2, "segment_error_px": 1.0, "segment_time_error": 0.004},
+        "preview": {"time_bits": 256, "samples": 4, "segment_error_px": 0.5, "segment_time_error": 0.002},
         "final": {"time_bits": 512, "samples": 16},
     },
     "velocity": {"draft": {"samples": 4}, "preview": {"samples": 8}, "final": {"samples": 16}},
