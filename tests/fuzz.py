@@ -113,6 +113,8 @@ def judge(code: int, stderr: str, out: str) -> str:
         layers = read_exr(out)
         if not np.isfinite(layers["RGBA"]).all():
             return "non-finite pixels"
+        if not {"Z", "motion.X", "motion.Y"} <= set(layers):
+            return "an AOV asked for is missing"
         # Z is inf where nothing is seen (SPEC §1); motion is 0 there, finite everywhere
         if not (np.isfinite(layers["motion.X"]).all() and np.isfinite(layers["motion.Y"]).all()):
             return "non-finite motion"

@@ -37,6 +37,11 @@ def test_negative_shutter_is_black(scene_path):
     path = two_quads_stage(scene_path())
     r = wb.render(path, frame=1, resolution=(32, 24), samples=4, shutter=(0.5, -0.5))
     assert not r.rgba.any()
+    # the AOVs asked for are there too, as where nothing is seen: Z inf, motion 0 (a fuzz soak
+    # found them missing from the EXR of such a frame)
+    assert set(r.aovs) == {"Z", "motion"}
+    assert np.isposinf(r.aovs["Z"]).all() and r.aovs["Z"].shape == (24, 32)
+    assert not r.aovs["motion"].any() and r.aovs["motion"].shape == (24, 32, 2)
 
 
 @pytest.mark.parametrize("name", ACCEPT_SCENES)

@@ -100,6 +100,17 @@ def test_render_frames_writes_each_frame(tmp_path, scene_path):
     assert ch["RGBA"].shape == (24, 32, 4) and "Z" in ch and "motion.X" in ch
 
 
+def test_unexposed_frame_writes_the_layers_asked_for(tmp_path, scene_path):
+    """close < open: a black frame (SPEC §2) whose EXR still holds Z (inf) and motion (0)."""
+    path = emissive_quad_stage(scene_path())
+    out = str(tmp_path / "black.exr")
+    assert main(["render", path, "-o", out, "--resolution", "16x12", "--samples", "2", "--shutter", "0.5:-0.5",
+                 "--aov", "Z,motion", "--quiet"]) == 0
+    ch = read_exr(out)
+    assert not ch["RGBA"].any()
+    assert (ch["Z"] == float("inf")).all() and not ch["motion.X"].any() and not ch["motion.Y"].any()
+
+
 def test_unauthored_shutter_warns(tmp_path, scene_path):
     path = emissive_quad_stage(scene_path(), shutter=None)
     code, _, err = _run("render", path, "-o", str(tmp_path / "a.exr"), "--resolution", "16x12", "--samples", "2")

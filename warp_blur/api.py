@@ -215,7 +215,14 @@ class Renderer:
                         aov_job.wait()   # the frame's buffers are released after: the helper is done first
                     raise
         aovs: dict[str, np.ndarray] = {}
-        if wants_aovs:
+        if not shutter.exposed:
+            # no exposure sees nothing (SPEC §2): the layers asked for hold what they hold where
+            # nothing is seen (SPEC §1), so a pipeline reading them finds them in every frame
+            if "Z" in s.aovs:
+                aovs["Z"] = np.full((h, w), np.inf, np.float32)
+            if "motion" in s.aovs:
+                aovs["motion"] = np.zeros((h, w, 2), np.float32)
+        elif wants_aovs:
             if ctx.aov_motion is not None:  # the velocity method's or a still frame's own buffers
                 depth, motion = ctx.aov_depth, ctx.aov_motion
             elif aov_job is not None:
