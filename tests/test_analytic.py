@@ -290,15 +290,30 @@ def test_entries_skipped_by_their_plane_depth_change_no_pixel(monkeypatch, bits)
         assert max_abs(culled.rgba, full.rgba) <= 1e-5
 
 
+def test_pilot_mask_takes_runs_of_neighbours():
+    """The pilot is one run of PILOT_BLOCK listed samples in every PILOT_STRIDE runs (a short last
+    run included), so its samples share tiles as the main pass's do."""
+    import warp_blur.methods.analytic as analytic
+    block, stride = analytic.PILOT_BLOCK, analytic.PILOT_STRIDE
+    n = 3 * block * stride + block // 2
+    mask = analytic.pilot_mask(n)
+    assert mask.shape == (n,) and mask.dtype == bool
+    starts = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8)])) == 1)
+    assert list(starts) == [k * block * stride for k in range(4)]
+    assert mask[:block].all() and not mask[block:block * stride].any()
+    assert mask.sum() == 3 * block + block // 2
+
+
 def test_room_set_by_a_pilot_gives_the_same_image(scene_path, monkeypatch):
-    """Many listed samples: a strided pilot fills first and sets the room for the rest from what
-    its samples needed. Room only decides how often a sample is filled again, never the image."""
+    """Many listed samples: a pilot fills first and sets the room for the rest from what its
+    samples needed. Room only decides how often a sample is filled again, never the image."""
     import warp_blur.methods.analytic as analytic
     path = moving_layers_stage(scene_path(), 8, cross=True)
     kw = dict(frame=1, resolution=(64, 48), method="analytic", aovs=())
     single = wb.render(path, **kw)
     monkeypatch.setattr(analytic, "PILOT_MIN", 16)
     monkeypatch.setattr(analytic, "PILOT_STRIDE", 4)
+    monkeypatch.setattr(analytic, "PILOT_BLOCK", 8)
     monkeypatch.setattr(analytic, "FIRST_FILL_ROOM", 3)
     piloted = wb.render(path, **kw)
     assert single.stats["interval_room"] == 64 and single.stats["pixels_refilled"] == 0.0
