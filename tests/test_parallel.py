@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_blur.core.parallel import FINE_BANDS, Background, launch_pixels, map_threads, run_prepared
+from warp_blur.core.parallel import FINE_BANDS, MIN_BAND, Background, guided_bounds, launch_pixels, map_threads, run_prepared
 
 
 @wp.kernel(enable_backward=False)
@@ -23,6 +23,39 @@ def test_every_pixel_is_launched_once(bands):
     hits = wp.zeros(1000, dtype=int, device="cpu")
     launch_pixels(count_pixels, 1000, lambda first, _n: [first, hits], "cpu", threads=2, bands_per_thread=bands)
     np.testing.assert_array_equal(hits.numpy(), np.ones(1000, np.int32))
+
+
+@pytest.mark.parametrize("start", [0, 37])
+def test_every_pixel_of_a_range_with_a_band_cap_is_launched_once(start):
+    hits = wp.zeros(start + 5000, dtype=int, device="cpu")
+    launch_pixels(count_pixels, 5000, lambda first, _n: [first, hits], "cpu", threads=2, start=start, max_band=700)
+    expected = np.concatenate([np.zeros(start, np.int32), np.ones(5000, np.int32)])
+    np.testing.assert_array_equal(hits.numpy(), expected)
+
+
+@pytest.mark.parametrize("n, threads, bands_per_thread, max_band", [
+    (36000, 2, 4, None), (786432, 2, FINE_BANDS, None), (2432, 2, 4, None), (16, 2, 4, None),
+    (100000, 4, 4, 3000), (300, 2, 16, None)])
+def test_guided_bands_shrink_to_a_floor_and_cover_the_range(n, threads, bands_per_thread, max_band):
+    """Bands cover [0, n) in order; each is at most 2x the uniform band (and max_band); they do not
+    grow until the floor (a quarter of the uniform band, at least MIN_BAND), and none is left
+    shorter than the floor at the end, so a pass's last bands are short but not tiny."""
+    size = -(-n // (threads * bands_per_thread))
+    if max_band is not None:
+        size = min(size, max_band)
+    bounds = guided_bounds(n, threads, size, max_band)
+    bands = np.diff(bounds)
+    floor = max(min(MIN_BAND, n), size // 4, 1)
+    widest = max(2 * size, floor)
+    assert bounds[0] == 0 and bounds[-1] == n and (bands > 0).all()
+    assert (bands[:-1] <= widest).all() and bands[-1] < widest + floor
+    if max_band is not None:
+        assert (bands <= max_band).all()
+    assert (bands[:-1] >= min(floor, max_band or floor)).all()
+    assert (np.diff(bands[:-1]) <= 0).all()   # shrinking (the last band takes what is left)
+    if n > 4 * floor and max_band is None:
+        assert len(bands) < 4 * threads * bands_per_thread
+        assert bands[-1] < bands[0]
 
 
 def test_passes_run_in_order_while_the_next_is_prepared():

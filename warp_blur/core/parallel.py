@@ -181,8 +181,8 @@ def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], d
                   threads: int | None = None, start: int = 0, bands_per_thread: int = 4,
                   max_band: int | None = None) -> None:
     """Launch `kernel` over pixels [start, start + num_pixels); inputs(first, count) gives a
-    band's launch inputs. On CPU the range is cut into bands (several per thread, for balance)
-    launched in parallel; on CUDA it is one launch."""
+    band's launch inputs. On CPU the range is cut into bands (guided_bounds: shrinking, for
+    balance) launched in parallel; on CUDA it is one launch."""
     if num_pixels <= 0:
         return
     threads = threads or default_threads()
@@ -197,12 +197,40 @@ def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], d
     size = _band_size(num_pixels, threads, bands_per_thread)
     if max_band is not None:
         size = max(1, min(size, max_band))
+    bounds = [start + b for b in guided_bounds(num_pixels, threads, size, max_band)]
+    ends = dict(zip(bounds[:-1], bounds[1:]))
 
     def run(first: int) -> None:
-        count = min(size, start + num_pixels - first)
+        count = ends[first] - first
         wp.launch(kernel, dim=count, inputs=inputs(first, count), device=device)
 
-    _run_bands(kernel, device, threads, range(start, start + num_pixels, size), run)
+    _run_bands(kernel, device, threads, bounds[:-1], run)
+
+
+#: pixels below which a band is not cut further (a band's launch costs ~0.05-0.1 ms of its own)
+MIN_BAND = 256
+
+
+def guided_bounds(n: int, threads: int, size: int, max_band: int | None = None) -> list[int]:
+    """Band boundaries [0, ..., n], the bands shrinking as the work left does ("guided"
+    scheduling): each takes 1/(2·threads) of what is left, at most 2·size (a caller asking for
+    fine bands has pixels of very unequal cost: stochastic's first bands of n/4 left a core idle on
+    `large`) and max_band, down to size // 4 (and MIN_BAND). The pool hands them out in order, so
+    the last to finish are small: with
+    `size`-long bands alone, the slowest band left a core idle at the end of the fill for ~5 ms
+    of deep_overlap's draft (session 63), and every small pass paid a launch for each of its
+    `size`-long bands however few its pixels."""
+    floor = max(min(MIN_BAND, n), size // 4, 1)
+    bounds, at = [0], 0
+    while at < n:
+        band = max(floor, min(-(-(n - at) // (2 * threads)), 2 * size))
+        if n - at - band < floor:   # no short band left over at the end
+            band = n - at
+        if max_band is not None:
+            band = min(band, max_band)
+        at = min(n, at + band)
+        bounds.append(at)
+    return bounds
 
 
 def launch_row_bands(kernel, dim: int, rows: int, inputs: Callable[[int, int], list], device: str,
