@@ -216,10 +216,9 @@ def guided_bounds(n: int, threads: int, size: int, max_band: int | None = None) 
     scheduling): each takes 1/(2·threads) of what is left, at most 2·size (a caller asking for
     fine bands has pixels of very unequal cost: stochastic's first bands of n/4 left a core idle on
     `large`) and max_band, down to size // 4 (and MIN_BAND). The pool hands them out in order, so
-    the last to finish are small: with
-    `size`-long bands alone, the slowest band left a core idle at the end of the fill for ~5 ms
-    of deep_overlap's draft (session 63), and every small pass paid a launch for each of its
-    `size`-long bands however few its pixels."""
+    the last to finish are small: with `size`-long bands alone, the slowest band left a core idle
+    at the end of the fill for ~5 ms of deep_overlap's draft (session 63), and every small pass
+    paid a launch for each of its `size`-long bands however few its pixels."""
     floor = max(min(MIN_BAND, n), size // 4, 1)
     bounds, at = [0], 0
     while at < n:
