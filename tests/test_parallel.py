@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_blur.core.parallel import FINE_BANDS, MIN_BAND, Background, guided_bounds, launch_pixels, map_threads, run_prepared
+from warp_blur.core.parallel import (FINE_BANDS, MIN_BAND, SHARP_WIDEST, Background, guided_bounds, launch_pixels,
+                                     map_threads, run_prepared)
 
 
 @wp.kernel(enable_backward=False)
@@ -33,20 +34,24 @@ def test_every_pixel_of_a_range_with_a_band_cap_is_launched_once(start):
     np.testing.assert_array_equal(hits.numpy(), expected)
 
 
-@pytest.mark.parametrize("n, threads, bands_per_thread, max_band", [
-    (36000, 2, 4, None), (786432, 2, FINE_BANDS, None), (2432, 2, 4, None), (16, 2, 4, None),
-    (100000, 4, 4, 3000), (300, 2, 16, None)])
-def test_guided_bands_shrink_to_a_floor_and_cover_the_range(n, threads, bands_per_thread, max_band):
-    """Bands cover [0, n) in order; each is at most 2x the uniform band (and max_band); they do not
-    grow until the floor (a quarter of the uniform band, at least MIN_BAND), and none is left
+@pytest.mark.parametrize("n, threads, bands_per_thread, max_band, widest", [
+    (36000, 2, 4, None, 2), (786432, 2, FINE_BANDS, None, 2), (786432, 2, FINE_BANDS, None, SHARP_WIDEST),
+    (2432, 2, 4, None, 2), (16, 2, 4, None, 2), (100000, 4, 4, 3000, 2), (300, 2, 16, None, 2)])
+def test_guided_bands_shrink_to_a_floor_and_cover_the_range(n, threads, bands_per_thread, max_band, widest):
+    """Bands cover [0, n) in order; each is at most `widest` uniform bands (and max_band); they do
+    not grow until the floor (a quarter of the uniform band, at least MIN_BAND), and none is left
     shorter than the floor at the end, so a pass's last bands are short but not tiny."""
     size = -(-n // (threads * bands_per_thread))
     if max_band is not None:
         size = min(size, max_band)
-    bounds = guided_bounds(n, threads, size, max_band)
+    bounds = guided_bounds(n, threads, size, max_band, widest)
     bands = np.diff(bounds)
     floor = max(min(MIN_BAND, n), size // 4, 1)
-    widest = max(2 * size, floor)
+    if 2 * widest >= bands_per_thread and max_band is None and n > 4 * floor:   # the cap does not bind:
+        assert bands[0] == -(-n // (2 * threads))                                 # 1/(2·threads) of all
+    elif max_band is None and n > 4 * floor:
+        assert bands[0] == widest * size
+    widest = max(widest * size, floor)
     assert bounds[0] == 0 and bounds[-1] == n and (bands > 0).all()
     assert (bands[:-1] <= widest).all() and bands[-1] < widest + floor
     if max_band is not None:

@@ -31,6 +31,9 @@ T = TypeVar("T")
 #: shaded at many instants or samples): with 4 bands per thread the slowest band left a core idle
 #: for 12-17% of a stochastic or accumulation frame on 2 cores, with 16 for 6-8%
 FINE_BANDS = 16
+#: accumulation's sharp passes over FINE_BANDS: guided bands may start this many even bands wide
+#: (a quarter of the image on 2 threads), where stochastic's stay at 2 (guided_bounds)
+SHARP_WIDEST = 8
 
 
 def default_threads() -> int:
@@ -179,10 +182,10 @@ def cheap_pass_threads(items: int, threads: int | None) -> int | None:
 
 def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], device: str,
                   threads: int | None = None, start: int = 0, bands_per_thread: int = 4,
-                  max_band: int | None = None) -> None:
+                  max_band: int | None = None, widest: int = 2) -> None:
     """Launch `kernel` over pixels [start, start + num_pixels); inputs(first, count) gives a
     band's launch inputs. On CPU the range is cut into bands (guided_bounds: shrinking, for
-    balance) launched in parallel; on CUDA it is one launch."""
+    balance; none wider than `widest` even bands) launched in parallel; on CUDA it is one launch."""
     if num_pixels <= 0:
         return
     threads = threads or default_threads()
@@ -197,7 +200,7 @@ def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], d
     size = _band_size(num_pixels, threads, bands_per_thread)
     if max_band is not None:
         size = max(1, min(size, max_band))
-    bounds = [start + b for b in guided_bounds(num_pixels, threads, size, max_band)]
+    bounds = [start + b for b in guided_bounds(num_pixels, threads, size, max_band, widest)]
     ends = dict(zip(bounds[:-1], bounds[1:]))
 
     def run(first: int) -> None:
@@ -211,18 +214,20 @@ def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], d
 MIN_BAND = 256
 
 
-def guided_bounds(n: int, threads: int, size: int, max_band: int | None = None) -> list[int]:
+def guided_bounds(n: int, threads: int, size: int, max_band: int | None = None, widest: int = 2) -> list[int]:
     """Band boundaries [0, ..., n], the bands shrinking as the work left does ("guided"
-    scheduling): each takes 1/(2·threads) of what is left, at most 2·size (a caller asking for
-    fine bands has pixels of very unequal cost: stochastic's first bands of n/4 left a core idle on
-    `large`) and max_band, down to size // 4 (and MIN_BAND). The pool hands them out in order, so
+    scheduling): each takes 1/(2·threads) of what is left, at most widest·size (a caller asking
+    for fine bands has pixels of very unequal cost: stochastic's first bands of n/4 left a core
+    idle on `large`, +5%, where accumulation's sharp passes over the same fine bands ran 3% faster
+    from n/4 than from 2·size, session 63) and max_band, down to size // 4 (and MIN_BAND). The
+    pool hands them out in order, so
     the last to finish are small: with `size`-long bands alone, the slowest band left a core idle
     at the end of the fill for ~5 ms of deep_overlap's draft (session 63), and every small pass
     paid a launch for each of its `size`-long bands however few its pixels."""
     floor = max(min(MIN_BAND, n), size // 4, 1)
     bounds, at = [0], 0
     while at < n:
-        band = max(floor, min(-(-(n - at) // (2 * threads)), 2 * size))
+        band = max(floor, min(-(-(n - at) // (2 * threads)), widest * size))
         if n - at - band < floor:   # no short band left over at the end
             band = n - at
         if max_band is not None:

@@ -20,7 +20,7 @@ from ..raster.device_data import TriangleTables, make_bins, make_geometry, make_
 from ..kernels.kernel_types import Geometry
 from ..core import progress
 from ..core.affine import invert_affine
-from ..core.parallel import FINE_BANDS, launch_pixels
+from ..core.parallel import FINE_BANDS, SHARP_WIDEST, launch_pixels
 from ..kernels.raster import (INSTANT_CACHE_SLOTS, record_nearest, render_over_recorded,
                               render_over_recorded_instants, render_sharp, render_sharp_depth_motion,
                               shade_recorded)
@@ -404,13 +404,13 @@ class FrameContext:
                 with self.timed("render"):
                     launch_pixels(render_sharp_depth_motion, count,
                                   lambda first, _n: [view, geo, sh, b, u, 0, 0, first, rgba, *aov_buffers, no_gather],
-                                  dev, self.settings.threads, bands_per_thread=FINE_BANDS)
+                                  dev, self.settings.threads, bands_per_thread=FINE_BANDS, widest=SHARP_WIDEST)
                 return
             with self.timed("render"):
                 launch_pixels(render_sharp, count,
                               lambda first, _n: [view, geo, sh, b, u, weight, listed, 0 if pixels is None else 1,
                                                  first, mode, rgba, rec_e, rec_hit, done], dev,
-                              self.settings.threads, bands_per_thread=FINE_BANDS)
+                              self.settings.threads, bands_per_thread=FINE_BANDS, widest=SHARP_WIDEST)
         return run, (RecordedHits(view, listed, rec_e, rec_hit, done=done if whole else None) if record else None)
 
     def skip_unshadowed(self, sh, geo: Geometry, u: float) -> None:
@@ -463,7 +463,7 @@ class FrameContext:
                 launch_pixels(shade_recorded, count,
                               lambda first, _n: [hits.view, geo, sh, u, weight, hits.pixels, first, hits.entries,
                                                  hits.hits, rows, use_rows, rgba], self.device, self.settings.threads,
-                              bands_per_thread=FINE_BANDS)
+                              bands_per_thread=FINE_BANDS, widest=SHARP_WIDEST)
         return run
 
     def prepare_record_pass(self, snapshot: Snapshot, pixels: np.ndarray, triangles: np.ndarray,
@@ -490,7 +490,8 @@ class FrameContext:
             with self.timed("render"):
                 launch_pixels(record_nearest, len(pixels),
                               lambda first, _n: [view, geo, sh, b, u, listed, first, shade, rec_e, rec_hit, rec_color,
-                                                 rec_kept], dev, self.settings.threads, bands_per_thread=FINE_BANDS)
+                                                 rec_kept], dev, self.settings.threads, bands_per_thread=FINE_BANDS,
+                              widest=SHARP_WIDEST)
         return run, RecordedHits(view, listed, rec_e, rec_hit, rec_color if shade else None,
                                  kept=rec_kept if shade else None)
 
@@ -545,7 +546,7 @@ class FrameContext:
                     launch_pixels(render_over_recorded_instants, count,
                                   lambda first, _n: [view, geo, sh, b, us, weight, hits.pixels, first, hits.entries,
                                                      hits.hits, hits.colors, cache_e, cache_color, rgba],
-                                  self.device, self.settings.threads, bands_per_thread=FINE_BANDS)
+                                  self.device, self.settings.threads, bands_per_thread=FINE_BANDS, widest=SHARP_WIDEST)
             return run_instants
 
         def run() -> None:
@@ -553,5 +554,5 @@ class FrameContext:
                 launch_pixels(render_over_recorded, hits.pixels.shape[0],
                               lambda first, _n: [view, geo, sh, b, u, weight, hits.pixels, first, kept,
                                                  hits.entries, hits.hits, colors, kept_flags, rgba], self.device,
-                              self.settings.threads, bands_per_thread=FINE_BANDS)
+                              self.settings.threads, bands_per_thread=FINE_BANDS, widest=SHARP_WIDEST)
         return run
