@@ -15,6 +15,11 @@ def wrap_index(i: int, n: int, mode: int) -> int:
     if i >= 0 and i < n:
         return i
     if mode == 0:
+        # within a period of the texture (uv in [-1, 2)): no integer division
+        if i < 0 and i >= -n:
+            return i + n
+        if i >= n and i < 2 * n:
+            return i - n
         return ((i % n) + n) % n
     if mode == 1:
         p = ((i % (2 * n)) + 2 * n) % (2 * n)
@@ -53,6 +58,12 @@ def bilinear(tx: Textures, level: int, uv: wp.vec2, wrap_s: int, wrap_t: int) ->
     fy = y - y0
     ix = int(x0)
     iy = int(y0)
+    # repeat is periodic: a texel column or row a whole number of periods away reads the same
+    # texels, so uv outside [0, 1] (glTF's tiled faces) still takes the direct reads below
+    if wrap_s == 0 and (ix < 0 or ix >= wi):
+        ix = wrap_index(ix, wi, 0)
+    if wrap_t == 0 and (iy < 0 or iy >= hi):
+        iy = wrap_index(iy, hi, 0)
     a = wp.vec4()
     b = wp.vec4()
     c = wp.vec4()
