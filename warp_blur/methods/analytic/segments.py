@@ -25,7 +25,7 @@ from ...core.memory import check_entries_fit
 from ...core.parallel import Background, default_threads
 from ...core.rows import all_corners, same_rows
 from ...raster.culling import hidden_back_faces
-from .chords import raise_chord_errors, screen_path_px
+from .chords import raise_chord_errors, screen_path_px, straddle_knots
 from ..frame import MOTION_PROBES
 from ...core.log import warn_once
 from ...usd.scene import Scene
@@ -40,7 +40,8 @@ if TYPE_CHECKING:
 class MotionPlan:
     """Knots kept for the frame and the entries (triangle, knot span) to render.
 
-    positions: (K+1, V, 3) float64 camera space at u = k/K; normals likewise (or None);
+    positions: (K+1, V, 3) float64 camera space at u = k/K (a curving path's knots moved so its
+    chords straddle it: chords.straddle_knots); normals likewise (or None: USD's own at the knots);
     lights: (K+1, NL, LIGHT_WIDTH); entry_*: (E,) int32; segments_per_prim: path -> K_p (0 = static);
     light_segments: the segments the lights' own curves need (0 = lights hold still).
     """
@@ -261,6 +262,15 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
     stride = m // k_global
     keep = list(range(0, m + 1, stride))
     positions = np.stack([snap(i).positions for i in keep])
+    # the chords of a curving path straddle it (chords.straddle_knots): each prim whose segments'
+    # midpoints are knots of m (all but those given all m segments), at the true positions there
+    spans_by_k: dict = {}
+    for ui, k_u in enumerate(seg_of_unit):
+        if 0 < k_u <= m // 2:
+            o, n = scene.unit_vertex_offsets[ui], scene.units[ui].num_points * scene.units[ui].num_instances
+            spans_by_k.setdefault(k_u, []).append(np.arange(o, o + n))
+    straddle_knots(positions, {k: np.concatenate(v) for k, v in spans_by_k.items()},
+                   lambda k_u, j: snap((2 * j + 1) * m // (2 * k_u)).positions)
     normals = None
     if scene.any_smooth:
         normals = np.stack([scene.shading_normals(snap(i).positions, snap(i).time) for i in keep])
