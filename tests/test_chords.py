@@ -109,3 +109,19 @@ def test_straddled_chords_follow_an_arc_closer_than_chords_and_still_meet():
     assert np.mean(straddle_err ** 2) < np.mean(chord_err ** 2) / 4
     radii = np.linalg.norm(positions[:, 0, :2], axis=1)
     assert (radii > 2.0).all()                       # the knots moved outwards, off the arc
+
+
+def test_straddling_leaves_a_vertex_with_a_non_finite_point_on_its_knots():
+    """A midpoint USD returns as NaN or inf (or a knot that overflows) moves no knot: the
+    vertex's knots stay as they were, finite, and the curving vertex beside it still moves."""
+    k = 4
+    knots = np.stack([np.concatenate([_circle(np.array([i / k])), [[0.0, 1.0, -4.0]], [[1e308, 0.0, -3.0]]])
+                      for i in range(k + 1)])                          # (k+1, 3, 3)
+    before = knots.copy()
+
+    def mid(k_u, j):
+        return np.concatenate([_circle(np.array([(j + 0.5) / k_u])), [[np.nan, 1.0, -4.0]], [[-1e308, 0.0, -3.0]]])
+    straddle_knots(knots, {k: np.array([0, 1, 2])}, mid)
+    np.testing.assert_array_equal(knots[:, 1:], before[:, 1:])
+    assert np.isfinite(knots).all()
+    assert (np.linalg.norm(knots[:, 0, :2], axis=1) > 2.0).all()

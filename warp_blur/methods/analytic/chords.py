@@ -133,7 +133,8 @@ def straddle_knots(positions: np.ndarray, spans_by_k: dict, mid_positions) -> No
     mid_positions(k, j) -> (V, 3) USD's positions at the middle of segment j of k. A knot moves by
     STRADDLE × the mean of the mid-segment deviations (true minus chord) of the chords either side
     of it (the one chord at the shutter's ends), so neighbouring segments still meet; a vertex
-    moving linearly (deviation below 1e-9 of its distance from the camera) keeps its knots exactly."""
+    moving linearly (deviation below 1e-9 of its distance from the camera) keeps its knots exactly,
+    as does one whose deviation is not a finite number."""
     k_all = positions.shape[0] - 1
     for k, idx in spans_by_k.items():
         if len(idx) == 0:
@@ -142,9 +143,12 @@ def straddle_knots(positions: np.ndarray, spans_by_k: dict, mid_positions) -> No
         # one run of vertices (the usual case) is a slice: views, not gathered copies
         sel = slice(int(idx[0]), int(idx[-1]) + 1) if idx[-1] - idx[0] + 1 == len(idx) else idx
         knots = positions[::step, sel]                                      # (k+1, n, 3)
-        dev = np.stack([mid_positions(k, j)[sel] for j in range(k)]) - 0.5 * (knots[:-1] + knots[1:])
-        scale2 = np.einsum("kni,kni->kn", knots, knots).max(axis=0)         # (n,)
-        linear = np.einsum("kni,kni->kn", dev, dev) <= 1e-18 * scale2
+        with np.errstate(invalid="ignore", over="ignore"):
+            dev = np.stack([mid_positions(k, j)[sel] for j in range(k)]) - 0.5 * (knots[:-1] + knots[1:])
+            scale2 = np.einsum("kni,kni->kn", knots, knots).max(axis=0)     # (n,)
+            dev2 = np.einsum("kni,kni->kn", dev, dev)
+        # a point USD cannot place (not finite at a knot or midpoint) moves no knot
+        linear = ~(dev2 > 1e-18 * scale2) | ~np.isfinite(dev2)
         if linear.all():
             continue
         dev[linear] = 0.0
