@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_blur.core.parallel import (FINE_BANDS, MIN_BAND, SHARP_WIDEST, Background, guided_bounds, launch_pixels,
+from warp_blur.core import parallel
+from warp_blur.core.parallel import (CHEAP_BANDS_PER_THREAD, CHEAP_PASS_SERIAL_ITEMS, FINE_BANDS, MIN_BAND,
+                                     SHARP_WIDEST, Background, guided_bounds, launch_cheap, launch_pixels,
                                      map_threads, run_prepared)
 
 
@@ -24,6 +26,27 @@ def test_every_pixel_is_launched_once(bands):
     hits = wp.zeros(1000, dtype=int, device="cpu")
     launch_pixels(count_pixels, 1000, lambda first, _n: [first, hits], "cpu", threads=2, bands_per_thread=bands)
     np.testing.assert_array_equal(hits.numpy(), np.ones(1000, np.int32))
+
+
+@pytest.mark.parametrize("n, threads, launches", [
+    (CHEAP_PASS_SERIAL_ITEMS - 1, 2, 1), (CHEAP_PASS_SERIAL_ITEMS, 2, 2 * CHEAP_BANDS_PER_THREAD),
+    (100_003, 2, 2 * CHEAP_BANDS_PER_THREAD), (100_003, 3, 3 * CHEAP_BANDS_PER_THREAD), (100_003, 1, 1)])
+def test_a_cheap_pass_launches_every_item_once_in_few_even_bands(n, threads, launches, monkeypatch):
+    """launch_cheap: one launch below CHEAP_PASS_SERIAL_ITEMS (or on one thread), else
+    CHEAP_BANDS_PER_THREAD even bands a thread (guided bands made 11 of a 36 k-vertex pass on 2
+    cores, each paying a launch), every item once."""
+    sizes = []
+    real = parallel.wp.launch
+
+    def counting(kernel, dim, **kw):
+        sizes.append(dim)
+        return real(kernel, dim=dim, **kw)
+    monkeypatch.setattr(parallel.wp, "launch", counting)
+    hits = wp.zeros(n, dtype=int, device="cpu")
+    launch_cheap(count_pixels, n, lambda first, _n: [first, hits], "cpu", threads)
+    np.testing.assert_array_equal(hits.numpy(), np.ones(n, np.int32))
+    assert len(sizes) == launches
+    assert max(sizes) - min(sizes) <= max(sizes) // 100 + len(sizes)
 
 
 @pytest.mark.parametrize("start", [0, 37])

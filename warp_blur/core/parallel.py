@@ -180,6 +180,38 @@ def cheap_pass_threads(items: int, threads: int | None) -> int | None:
     return 1 if items < CHEAP_PASS_SERIAL_ITEMS else threads
 
 
+#: bands per thread of a cheap pass (launch_cheap): its items cost alike, so even bands balance,
+#: and each band's launch costs ~0.05-0.1 ms (guided bands made 11 of every such pass on 2 cores)
+CHEAP_BANDS_PER_THREAD = 2
+
+
+def launch_cheap(kernel, num_items: int, inputs: Callable[[int, int], list], device: str,
+                 threads: int | None = None) -> None:
+    """launch_pixels for a kernel doing little and the same per item (a vertex or triangle pass):
+    one launch below CHEAP_PASS_SERIAL_ITEMS, else CHEAP_BANDS_PER_THREAD even bands a thread."""
+    threads = cheap_pass_threads(num_items, threads)
+    if threads == 1 or device != "cpu" or num_items <= 0:
+        launch_pixels(kernel, num_items, inputs, device, threads)
+        return
+    threads = threads or default_threads()
+    cap = getattr(_launch_cap, "threads", None)
+    if cap is not None:
+        threads = min(threads, cap)
+    if launches_serially():
+        threads = 1
+    if threads == 1:
+        wp.launch(kernel, dim=num_items, inputs=inputs(0, num_items), device=device)
+        return
+    size = _band_size(num_items, threads, CHEAP_BANDS_PER_THREAD)
+    firsts = list(range(0, num_items, size))
+
+    def run(first: int) -> None:
+        count = min(size, num_items - first)
+        wp.launch(kernel, dim=count, inputs=inputs(first, count), device=device)
+
+    _run_bands(kernel, device, threads, firsts, run)
+
+
 def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], device: str,
                   threads: int | None = None, start: int = 0, bands_per_thread: int = 4,
                   max_band: int | None = None, widest: int = 2) -> None:

@@ -20,7 +20,7 @@ import warp as wp
 
 from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
 from ..core.host_arrays import int32_array, vec3d_array, vec3i_array
-from ..core.parallel import cheap_pass_threads, launch_pixels
+from ..core.parallel import launch_cheap
 from ..core.rows import all_corners
 
 
@@ -94,8 +94,7 @@ def instance_volume_sign(positions: np.ndarray, tri_vertices: np.ndarray, tri_ob
         out = wp.array(dets, dtype=wp.float64, device="cpu", copy=False)
         # (bands on every core for a field of instances; one launch for the few triangles of an
         # accumulation instant, which calls this at every instant)
-        launch_pixels(triangle_dets, len(tris), lambda first, _n: [*inputs, first, out], "cpu",
-                      cheap_pass_threads(len(tris), None))
+        launch_cheap(triangle_dets, len(tris), lambda first, _n: [*inputs, first, out], "cpu")
     for k in range(positions.shape[0]):
         vol = np.bincount(obj, weights=dets[k], minlength=n_obj)
         s = np.sign(vol)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from ..core.parallel import cheap_pass_threads, launch_pixels, launch_row_bands
+from ..core.parallel import launch_cheap, launch_pixels, launch_row_bands
 from ..core.rows import all_corners
 from ..kernels.shadow_raster import render_shadow_texels, splat_boxes, splat_shadow_depth
 from ..raster.binning import TILE_SIZE, bin_entries, entry_pixel_bounds
@@ -179,8 +179,8 @@ class FaceRasterizer:
             return
         boxes = wp.empty(entries, dtype=wp.vec4i, device=self.device)
         num_tris = len(self.tri_vertices)
-        launch_pixels(splat_boxes, entries, lambda first, _n: [view, geo, cull, num_tris, first, boxes], self.device,
-                      cheap_pass_threads(entries, threads))
+        launch_cheap(splat_boxes, entries, lambda first, _n: [view, geo, cull, num_tris, first, boxes], self.device,
+                     threads)
         launch_row_bands(splat_shadow_depth, entries, self.size,
                          lambda y0, y1: [view, geo, boxes, y0, y1, stride, block, target, touched, occupied],
                          self.device, threads)

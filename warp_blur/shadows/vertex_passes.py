@@ -15,7 +15,7 @@ import warp as wp
 
 from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
 from ..core.host_arrays import int32_array, vec3d_array
-from ..core.parallel import cheap_pass_threads, default_threads, launch_pixels, map_threads
+from ..core.parallel import default_threads, launch_cheap, map_threads
 from .layout import Sample
 
 #: the 26 directions of a 3×3×3 grid: the scene's extreme vertices along them pre-test every plane
@@ -66,8 +66,7 @@ def light_frame_changes(ref: np.ndarray, frame0: tuple[np.ndarray, np.ndarray],
     for positions, (o1, m1) in others:
         fixed = [ref_wp, vec3d_array(positions, dev), wp.vec3d(*o0), wp.mat33d(*np.ravel(m0)), wp.vec3d(*o1),
                  wp.mat33d(*np.ravel(m1))]
-        launch_pixels(light_local_change, n, lambda first, _n: [*fixed, first, *outputs], dev,
-                      cheap_pass_threads(n, threads))
+        launch_cheap(light_local_change, n, lambda first, _n: [*fixed, first, *outputs], dev, threads)
     return change, size
 
 
@@ -95,7 +94,7 @@ def face_positions(transforms: list[tuple[np.ndarray, np.ndarray]], samples: lis
             continue
         fixed = [vec3d_array(s.positions, device),
                  wp.mat33d(*np.asarray(a, np.float64).ravel()), wp.vec3d(*np.asarray(t, np.float64)), int(row)]
-        launch_pixels(to_face_space, n, lambda first, _n: [*fixed, first, out], device, cheap_pass_threads(n, threads))
+        launch_cheap(to_face_space, n, lambda first, _n: [*fixed, first, out], device, threads)
     return out
 
 

@@ -23,7 +23,7 @@ from pxr import Usd, UsdGeom
 
 from ..core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
 from ..core.host_arrays import vec3d_array
-from ..core.parallel import cheap_pass_threads, launch_pixels
+from ..core.parallel import launch_cheap
 from ..core.sorting import stable_argsort
 from ..core.log import warn_once
 from .values import array_value, unregistered
@@ -231,10 +231,9 @@ class SmoothNormals:
         face = wp.empty(self.num_triangles, dtype=wp.vec3d, device="cpu")
         out = wp.empty(self.num_vertices, dtype=wp.vec3, device="cpu")
         # (bands on every core for a field of instances, one launch for a few thousand triangles)
-        launch_pixels(_face_normals, self.num_triangles, lambda first, _n: [p, self._tris, first, face], "cpu",
-                      cheap_pass_threads(self.num_triangles, None))
-        launch_pixels(_vertex_sums, self.num_vertices, lambda first, _n: [face, self._offsets, self._faces, first, out],
-                      "cpu", cheap_pass_threads(self.num_vertices, None))
+        launch_cheap(_face_normals, self.num_triangles, lambda first, _n: [p, self._tris, first, face], "cpu")
+        launch_cheap(_vertex_sums, self.num_vertices, lambda first, _n: [face, self._offsets, self._faces, first, out],
+                     "cpu")
         return out.numpy()
 
 

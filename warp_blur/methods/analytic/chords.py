@@ -18,7 +18,7 @@ import warp as wp
 from ...core import warp_setup  # noqa: F401  (Warp's settings, before anything starts it)
 from ...core.camera import Projection
 from ...core.host_arrays import int32_array, vec3d_array
-from ...core.parallel import cheap_pass_threads, launch_pixels
+from ...core.parallel import launch_cheap
 
 
 @wp.func
@@ -95,8 +95,7 @@ def screen_path_px(proj: Projection, probes: list[np.ndarray], threads: int | No
     out = wp.array(total, dtype=wp.float64, device="cpu", copy=False)
     for a, b in zip(probes, probes[1:]):
         fixed = [vec3d_array(a), vec3d_array(b), *_camera(proj)]
-        launch_pixels(add_screen_steps, n, lambda first, _n: [*fixed, first, out], "cpu",
-                      cheap_pass_threads(n, threads))
+        launch_cheap(add_screen_steps, n, lambda first, _n: [*fixed, first, out], "cpu", threads)
     return total
 
 
@@ -114,8 +113,7 @@ def raise_chord_errors(proj: Projection, a: np.ndarray, b: np.ndarray, truth: np
         return
     out = wp.array(err, dtype=wp.float64, device="cpu", copy=False)
     fixed = [vec3d_array(a), vec3d_array(b), vec3d_array(truth), int32_array(idx), wp.float64(f), *_camera(proj)]
-    launch_pixels(max_chord_error, len(idx), lambda first, _n: [*fixed, first, out], "cpu",
-                  cheap_pass_threads(len(idx), threads))
+    launch_cheap(max_chord_error, len(idx), lambda first, _n: [*fixed, first, out], "cpu", threads)
 
 
 #: how far a knot moves towards the inside of its vertex's curving path, as a fraction of its
