@@ -26,13 +26,17 @@ QUALITY_PRESETS: dict[str, dict[str, dict[str, float]]] = {
         # the draft linearises motion more coarsely (fewer motion segments, so fewer prisms): its
         # coverage is what costs, not its resolve (bench_tradeoff, issue 18). 256 bits, not 128:
         # -1 to +6% time on the six bench scenes in alternated rounds, the error 1.0-4.1x lower
-        # (session 63; 128 against 64 in session 55: 0-6% more time, 1.0-1.8x lower). Preview's 256
-        # likewise: +1 to +7%, 1.0-4.1x lower; 512 would cost it what final costs on rotation
-        # Its segments 1.5 px / 0.006 of the path, not 1 / 0.004, since chords straddle the path
-        # (session 64): deep_overlap -10% at RMSE 0.00061 (was 0.00081 before the straddle), the
-        # other five bench scenes' segments unchanged
+        # (session 63; 128 against 64 in session 55: 0-6% more time, 1.0-1.8x lower). Its segments
+        # 1.5 px / 0.006 of the path, not 1 / 0.004, since chords straddle the path (session 64):
+        # deep_overlap -10% at RMSE 0.00061 (was 0.00081 before the straddle), the other five
+        # bench scenes' segments unchanged.
         "draft": {"time_bits": 256, "samples": 2, "segment_error_px": 1.5, "segment_time_error": 0.006},
-        "preview": {"time_bits": 256, "samples": 4, "segment_error_px": 0.5, "segment_time_error": 0.002},
+        # preview: the draft's old segments (1 px / 0.004) with final's 512 bits and 4 shading
+        # pieces (session 64, alternated against 256 bits at 0.5 px / 0.002): rotation -14% at
+        # RMSE 0.00055 (was 0.00059; its 32 segments were final's), deep_overlap -4% at 0.00033
+        # (0.00041), demo -9% at 0.00064 (0.00060), near_plane and crossing +2 / +6% at half the
+        # error (final's images), large +3% at 0.00044 (0.00049)
+        "preview": {"time_bits": 512, "samples": 4, "segment_error_px": 1.0, "segment_time_error": 0.004},
         "final": {"time_bits": 512, "samples": 16},
     },
     "velocity": {"draft": {"samples": 4}, "preview": {"samples": 8}, "final": {"samples": 16}},
