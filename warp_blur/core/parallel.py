@@ -189,35 +189,17 @@ def launch_cheap(kernel, num_items: int, inputs: Callable[[int, int], list], dev
                  threads: int | None = None) -> None:
     """launch_pixels for a kernel doing little and the same per item (a vertex or triangle pass):
     one launch below CHEAP_PASS_SERIAL_ITEMS, else CHEAP_BANDS_PER_THREAD even bands a thread."""
-    threads = cheap_pass_threads(num_items, threads)
-    if threads == 1 or device != "cpu" or num_items <= 0:
-        launch_pixels(kernel, num_items, inputs, device, threads)
-        return
-    threads = threads or default_threads()
-    cap = getattr(_launch_cap, "threads", None)
-    if cap is not None:
-        threads = min(threads, cap)
-    if launches_serially():
-        threads = 1
-    if threads == 1:
-        wp.launch(kernel, dim=num_items, inputs=inputs(0, num_items), device=device)
-        return
-    size = _band_size(num_items, threads, CHEAP_BANDS_PER_THREAD)
-    firsts = list(range(0, num_items, size))
-
-    def run(first: int) -> None:
-        count = min(size, num_items - first)
-        wp.launch(kernel, dim=count, inputs=inputs(first, count), device=device)
-
-    _run_bands(kernel, device, threads, firsts, run)
+    launch_pixels(kernel, num_items, inputs, device, cheap_pass_threads(num_items, threads),
+                  bands_per_thread=CHEAP_BANDS_PER_THREAD, guided=False)
 
 
 def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], device: str,
                   threads: int | None = None, start: int = 0, bands_per_thread: int = 4,
-                  max_band: int | None = None, widest: int = 2) -> None:
+                  max_band: int | None = None, widest: int = 2, guided: bool = True) -> None:
     """Launch `kernel` over pixels [start, start + num_pixels); inputs(first, count) gives a
     band's launch inputs. On CPU the range is cut into bands (guided_bounds: shrinking, for
-    balance; none wider than `widest` even bands) launched in parallel; on CUDA it is one launch."""
+    balance; none wider than `widest` even bands; or, with guided False, threads ×
+    bands_per_thread even ones) launched in parallel; on CUDA it is one launch."""
     if num_pixels <= 0:
         return
     threads = threads or default_threads()
@@ -232,7 +214,9 @@ def launch_pixels(kernel, num_pixels: int, inputs: Callable[[int, int], list], d
     size = _band_size(num_pixels, threads, bands_per_thread)
     if max_band is not None:
         size = max(1, min(size, max_band))
-    bounds = [start + b for b in guided_bounds(num_pixels, threads, size, max_band, widest)]
+    cuts = (guided_bounds(num_pixels, threads, size, max_band, widest) if guided
+            else list(range(0, num_pixels, size)) + [num_pixels])
+    bounds = [start + b for b in cuts]
     ends = dict(zip(bounds[:-1], bounds[1:]))
 
     def run(first: int) -> None:
