@@ -141,3 +141,26 @@ def test_straddled_chords_bring_a_turning_quad_closer_to_accumulation(scene_path
     assert straddled.stats["motion_segments"] == on_arc.stats["motion_segments"]
     assert rmse(straddled.rgba, ref.rgba) * 1.5 <= rmse(on_arc.rgba, ref.rgba)
     np.testing.assert_array_equal(wb.render(sliding, **kw).rgba, line.rgba)
+
+
+def test_a_prim_whose_chords_barely_stray_is_not_straddled(scene_path, monkeypatch):
+    """A quad turning 0.0001 degrees over the shutter has chords within 1e-4 px of its path: the
+    planner hands its vertices to straddle_knots only when STRADDLE_MIN_PX allows (the pass over
+    `large`'s straight-line rocks moved nothing and cost 2.5 ms), and a quad turning 20 degrees
+    is always handed over."""
+    seen = []
+    real = segments.straddle_knots
+
+    def spy(positions, spans_by_k, mid_positions):
+        seen.append(sum(len(v) for v in spans_by_k.values()))
+        return real(positions, spans_by_k, mid_positions)
+    monkeypatch.setattr(segments, "straddle_knots", spy)
+    kw = dict(frame=1, resolution=RES, method="analytic", aovs=())
+    creeping = emissive_quad_stage(scene_path(), rotate_axis="Z", rotate_samples={0.5: 0, 1.5: 1e-4})
+    turning = emissive_quad_stage(scene_path(), rotate_axis="Z", rotate_samples={0.5: 0, 1.5: 20})
+    out = wb.render(creeping, **kw)
+    assert 0 < out.stats["motion_segment_error_px"] < segments.STRADDLE_MIN_PX
+    wb.render(turning, **kw)
+    monkeypatch.setattr(segments, "STRADDLE_MIN_PX", 0.0)
+    wb.render(creeping, **kw)
+    assert seen == [0, 4, 4]
