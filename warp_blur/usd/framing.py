@@ -84,8 +84,11 @@ def define_framing_camera(stage: Usd.Stage) -> UsdGeom.Camera:
         cam.CreateHorizontalApertureAttr(_H_APERTURE)
         cam.CreateVerticalApertureAttr(_V_APERTURE)
         cam.MakeMatrixXform()
-    warn_once("framing-camera", "the stage has no camera: rendering through a computed camera that frames "
-                                "its bounds (pass --camera to choose one)")
+    # once per stage (a pipeline's process renders many assets; keyed once per process, only the
+    # first camera-less stage was told, and a test's warning depended on what ran before it)
+    warn_once(f"framing-camera:{stage.GetRootLayer().identifier}",
+              "the stage has no camera: rendering through a computed camera that frames its bounds (pass "
+              "--camera to choose one)")
     return cam
 
 

@@ -199,7 +199,7 @@ def shutter_for_frame(stage: Usd.Stage, camera: UsdGeom.Camera, frame: float,
     else:
         open_attr, close_attr = camera.GetShutterOpenAttr(), camera.GetShutterCloseAttr()
         if not (open_attr.HasAuthoredValue() or close_attr.HasAuthoredValue()):
-            warn_once(f"shutter:{camera.GetPath()}",
+            warn_once(f"shutter:{camera.GetPrim().GetStage().GetRootLayer().identifier}:{camera.GetPath()}",
                       f"camera {camera.GetPath()} has no authored shutter: USD's fallback [0, 0] renders a sharp frame "
                       f"(use --shutter OPEN:CLOSE to blur)")
         o, c = _shutter_value(open_attr, frame), _shutter_value(close_attr, frame)
