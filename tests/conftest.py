@@ -13,6 +13,16 @@ ACCEPTANCE = os.path.join(os.path.dirname(ROOT), "shared", "acceptance")
 SCENES = os.path.join(ROOT, "usd_scenes")
 
 
+@pytest.fixture(autouse=True)
+def _warnings_start_empty():
+    """A test's renders report only what they said: warnings an earlier test's render said and
+    never collected (it raised, or a Renderer was made and not rendered) are dropped first, so a
+    test asserting a frame's warnings does not depend on what ran before it in its worker."""
+    from warp_blur.core import log
+    log.take_warnings()
+    yield
+
+
 @pytest.fixture
 def scene_path(tmp_path):
     """A function giving a fresh .usda path in the test's tmp dir."""
