@@ -101,3 +101,22 @@ def test_each_camera_less_stage_says_it_is_framed(scene_path):
         result = wb.render(path, frame=1, method="accumulation", samples=1, resolution=(32, 24))
         heard.append(sum("computed camera" in w for w in result.stats["warnings"]))
     assert heard == [1, 1, 0]
+
+
+def test_a_renderers_warnings_are_its_own_whichever_renders_first(scene_path):
+    """Two Renderers of camera-less stages made one after the other and rendered in the other
+    order: each frame's stats hold its own stage's computed-camera warning, once (the second
+    Renderer's frame used to report both, the first's none); a frame that fails keeps them for
+    the next frame that renders."""
+    first = wb.Renderer(_box_stage(scene_path(), "Y"), resolution=(32, 24),
+                        settings=wb.RenderSettings(method="accumulation", samples=1))
+    second = wb.Renderer(_box_stage(scene_path(), "Z"), resolution=(32, 24),
+                         settings=wb.RenderSettings(method="accumulation", samples=1))
+
+    def heard(result):
+        return sum("computed camera" in w for w in result.stats["warnings"])
+    assert heard(second.render(1)) == 1
+    with pytest.raises(wb.UserError):
+        first.render(float("nan"))
+    assert heard(first.render(1)) == 1
+    assert heard(first.render(1)) == 0

@@ -94,6 +94,7 @@ class Renderer:
 
     def __init__(self, scene_path: str, *, camera: str | None = None,
                  resolution: tuple[int, int] | None = None, settings: RenderSettings | None = None) -> None:
+        log.take_warnings()   # what a failed render or Renderer said (logged already) is not ours
         self.settings = settings or RenderSettings()
         self.scene_path = scene_path
         self.stage = open_stage(scene_path)
@@ -109,6 +110,9 @@ class Renderer:
         # geometry units kept across frames where nothing they were read from can change
         self.units = UnitCache(self.stage, ignored=FRAMING_CAMERA_PATH)
         self._lock = threading.Lock()
+        # what opening the stage said (its computed camera, its shutter), for the first frame's
+        # stats: not another Renderer's, whichever renders first
+        self._opening_warnings = log.take_warnings()
 
     def check_frame(self, frame: float) -> None:
         """Frames that are not finite, or outside the stage's authored time range, are a user error
@@ -132,8 +136,12 @@ class Renderer:
             try:
                 return self._render(frame)
             except Tf.ErrorException as exc:   # USD's own verification failing on the stage's data
+                log.take_warnings()   # (logged; not the next frame's)
                 raise StageError(f"USD cannot evaluate {self.scene_path} at frame {frame:g}: "
                                  f"{usd_error_text(exc)}") from None
+            except BaseException:
+                log.take_warnings()
+                raise
 
     def _render(self, frame: float) -> RenderResult:
         t_start = time.perf_counter()
@@ -172,7 +180,7 @@ class Renderer:
             "triangles": scene.num_triangles, "prims": len(scene.units), "prims_reused": scene.units_reused,
             "time": {**{k: round(v, 6) for k, v in ctx.timings.items()}, "total": round(total, 6)},
             "triangles_per_second": scene.num_triangles / total if total > 0 else math.inf,
-            **ctx.counters, "warnings": log.take_warnings(),
+            **ctx.counters, "warnings": self._opening_warnings + log.take_warnings(),
         }
         metadata = {
             "camera": str(self.camera.GetPath()), "shutter": [shutter.open, shutter.close],
@@ -181,6 +189,7 @@ class Renderer:
             "motion_convention": "motion.X/motion.Y: screen displacement in pixels of the surface seen at the "
                                  "shutter centre, from shutter open to close; x right, y down; 0 where nothing is seen",
         }
+        self._opening_warnings = []
         exr = standard_attributes(proj, scene.cam_from_world(0.5 * (shutter.open + shutter.close)),
                                   self.stage.GetFramesPerSecond(), self.scene_path, frame)
         return RenderResult(rgba=rgba, aovs=aovs, stats=stats, metadata=metadata, exr_attributes=exr)
