@@ -204,7 +204,7 @@ class ShadowMaps(KeyWarping):
         while b > 2 and per_time * b > self.options.memory_mb * 2**20:
             b //= 2
         if b < requested:
-            warn_once("shadow-budget", f"shadow maps: {b} instants instead of {requested} to stay within "
+            warn_once(f"shadow-budget:{b}:{requested}:{self.options.memory_mb:g}", f"shadow maps: {b} instants instead of {requested} to stay within "
                                        f"{self.options.memory_mb:g} MB")
         return b
 

@@ -261,9 +261,10 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
                   f"accuracy)")
     if lights_pending:
         light_k = min(m, MAX_LIGHT_SEGMENTS)
-        warn_once("light-segments-cap", f"the lights change faster over the shutter than {light_k} linear segments "
-                                        f"follow within {LIGHT_TOLERANCE:g} (a switch or a held value?); "
-                                        f"rendering them linear between {light_k + 1} knots")
+        warn_once(f"light-segments-cap:{scene.stage.GetRootLayer().identifier}",   # once per stage
+                  f"the lights change faster over the shutter than {light_k} linear segments follow within "
+                  f"{LIGHT_TOLERANCE:g} (a switch or a held value?); rendering them linear between "
+                  f"{light_k + 1} knots")
     k_global = max(seg_of_unit + [light_k, 1])
     stride = m // k_global
     keep = list(range(0, m + 1, stride))
