@@ -135,12 +135,11 @@ class Renderer:
         with self._lock:
             try:
                 return self._render(frame)
-            except Tf.ErrorException as exc:   # USD's own verification failing on the stage's data
-                log.take_warnings()   # (logged; not the next frame's)
-                raise StageError(f"USD cannot evaluate {self.scene_path} at frame {frame:g}: "
-                                 f"{usd_error_text(exc)}") from None
-            except BaseException:
-                log.take_warnings()
+            except BaseException as exc:
+                log.take_warnings()   # a failed frame's warnings (logged with it) are not the next frame's
+                if isinstance(exc, Tf.ErrorException):   # USD's own verification failing on the stage's data
+                    raise StageError(f"USD cannot evaluate {self.scene_path} at frame {frame:g}: "
+                                     f"{usd_error_text(exc)}") from None
                 raise
 
     def _render(self, frame: float) -> RenderResult:
@@ -182,6 +181,7 @@ class Renderer:
             "triangles_per_second": scene.num_triangles / total if total > 0 else math.inf,
             **ctx.counters, "warnings": self._opening_warnings + log.take_warnings(),
         }
+        self._opening_warnings = []
         metadata = {
             "camera": str(self.camera.GetPath()), "shutter": [shutter.open, shutter.close],
             "frame": frame, "scene": os.path.abspath(self.scene_path), "warp_blur_version": __version__,
@@ -189,7 +189,6 @@ class Renderer:
             "motion_convention": "motion.X/motion.Y: screen displacement in pixels of the surface seen at the "
                                  "shutter centre, from shutter open to close; x right, y down; 0 where nothing is seen",
         }
-        self._opening_warnings = []
         exr = standard_attributes(proj, scene.cam_from_world(0.5 * (shutter.open + shutter.close)),
                                   self.stage.GetFramesPerSecond(), self.scene_path, frame)
         return RenderResult(rgba=rgba, aovs=aovs, stats=stats, metadata=metadata, exr_attributes=exr)
