@@ -28,6 +28,7 @@ from ..usd.scene import Scene, Snapshot
 from ..core.settings import RenderSettings
 from ..shadows.layout import Sample, ShadowOptions
 from ..shadows.maps import ShadowMaps, lit_materials
+from ..shadows.pairs import pair_receivers
 from ..usd.stage import Shutter
 from ..usd.textures import texture_lod
 
@@ -192,15 +193,16 @@ class FrameContext:
             return False
         return lit_materials(scene.material_table, scene.tri_material)
 
-    def shadow_maps(self, sample_at) -> ShadowMaps | None:
+    def shadow_maps(self, sample_at, knots: list[Sample] | None = None) -> ShadowMaps | None:
         """Shadow maps over this frame's shutter, the scene at shutter time u given by
-        sample_at(u) -> Sample; None when no light can cast a visible shadow (no time spent)."""
+        sample_at(u) -> Sample; None when no light can cast a visible shadow (no time spent).
+        With a motion plan's knots (sample_at linear between them), lights that can darken nothing lit get none."""
         if not self.may_cast_shadows():
             return None
         scene = self.scene
         sm = ShadowMaps(self.tables, scene.tri_vertices, scene.tri_object, sample_at,
                         self.shadow_options(), self.device, self.settings.threads, self.timings, self.counters,
-                        scene.tri_closed)
+                        scene.tri_closed, knots, pair_receivers(scene) if knots is not None else None)
         return sm if sm.active else None
 
     def snapshot_fraction(self, snapshot: Snapshot) -> float:

@@ -36,6 +36,7 @@ from .casters import light_casters, used_vertex_index
 from .direct import STILL_PROBES, FaceRasterizer, still_triangles
 from .layout import (FAR, Face, LightLayout, Sample, ShadowData, ShadowOptions, distant_face, fit_faces, light_frame,
                      light_sample_offsets)
+from .pairs import light_shadows_nothing, responds_to_light
 from .texel_major import TexelMajorLayout
 from .vertex_passes import light_fit
 from .warped import KeyWarping
@@ -61,7 +62,11 @@ class ShadowMaps(KeyWarping):
     def __init__(self, tables: TriangleTables, tri_vertices: np.ndarray, tri_object: np.ndarray,
                  sample_at: Callable[[float], Sample], options: ShadowOptions,
                  device: str, threads: int | None, timings: dict, counters: dict,
-                 tri_closed: np.ndarray | None = None) -> None:
+                 tri_closed: np.ndarray | None = None, knots: list[Sample] | None = None,
+                 receivers: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """knots: samples whose consecutive pairs hold, linearly, every sample sample_at gives (a
+        motion plan's knots), and receivers: (tri_receives, tri_self_safe), (T,) bool each (pairs.py):
+        given both, the lights that can darken nothing lit get no maps."""
         self.tables = tables
         self.tri_vertices = tri_vertices
         self.tri_object = tri_object
@@ -91,9 +96,15 @@ class ShadowMaps(KeyWarping):
         if options.mode == "off" or len(tri_vertices) == 0:
             return
         rows = [j for j in range(len(centre.lights)) if centre.lights[j, 17] > 0.5]
+        t0 = time.perf_counter()
+        if rows and knots is not None and receivers is not None:
+            needed = [j for j in rows if not light_shadows_nothing(j, knots, tri_vertices, tri_object, *receivers)]
+            self.counters["shadow_lights_unneeded"] = len(rows) - len(needed)
+            rows = needed
+            if not rows:
+                self._add_time("shadow_setup", time.perf_counter() - t0)
         if not rows:
             return
-        t0 = time.perf_counter()
         self._plan(rows)
         if tri_closed is not None and tri_closed.any() and len(tri_object):
             # closed instances' volume signs at shutter open, centre and close (camera space: a sign
@@ -492,6 +503,4 @@ def lit_materials(material_table: np.ndarray, tri_material: np.ndarray) -> bool:
     """True when some triangle's material responds to lights (shadows can change a pixel)."""
     if len(tri_material) == 0:
         return False
-    rows = material_table[np.unique(tri_material)]
-    return bool(((rows[:, 10] > 0.5) | (rows[:, 21] > 0.5) | (np.abs(rows[:, 0:3]).sum(axis=1) > 0)
-                 | (np.abs(rows[:, 6:9]).sum(axis=1) > 0)).any())
+    return bool(responds_to_light(material_table[np.unique(tri_material)]).any())

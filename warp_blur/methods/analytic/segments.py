@@ -74,6 +74,13 @@ class MotionPlan:
         lights = self.lights[k] + np.float32(f) * (self.lights[k + 1] - self.lights[k])
         return Sample(pos, self.tri_visible[k + 1] if f >= 1.0 else self.tri_visible[k], lights)
 
+    def knots(self):
+        """The plan at each of its knots, as shadows.layout.Samples: sample() is linear between
+        consecutive ones."""
+        from ...shadows.layout import Sample
+        return [Sample(self.positions[k], self.tri_visible[k], self.lights[min(k, len(self.lights) - 1)])
+                for k in range(len(self.positions))]
+
     @property
     def num_segments(self) -> int:
         return self.positions.shape[0] - 1
@@ -368,7 +375,7 @@ def start_shading(ctx, plan: MotionPlan) -> Callable[[], tuple[Shading, "wp.arra
 
     def build() -> tuple[Shading, "wp.array | None"]:
         shadows = None
-        maps = ctx.shadow_maps(plan.sample)
+        maps = ctx.shadow_maps(plan.sample, plan.knots())
         if maps is not None:
             num_times = maps.times_for(s.shadow_times)
             with ctx.timed("shadow_total"):
