@@ -90,9 +90,12 @@ def light_shadows_nothing(j: int, knots: list[Sample], tri_vertices: np.ndarray,
     visible = np.zeros(len(tri_vertices), bool)
     for k in knots:
         visible |= k.tri_visible if len(k.tri_visible) else True
-    receivers = np.unique(tri_object[visible & tri_receives])
-    if len(receivers) == 0:
+    lit = visible & tri_receives
+    if not lit.any():
         return True
+    if (lit & ~tri_self_safe).any():   # an open or smooth receiver (the usual ground): no further look
+        return False
+    receivers = np.unique(tri_object[lit])
     objects = np.unique(tri_object[visible])
     if len(objects) > MAX_OBJECTS:
         return False
