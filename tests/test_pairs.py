@@ -100,6 +100,25 @@ def test_a_receiver_that_may_shadow_itself_keeps_the_maps():
     dented = pos.copy()
     dented[7] = (0.2, 0.2, 0.2)
     assert not shadows_nothing(knots_of(dented), tris, obj)
+    assert not shadows_nothing(knots_of(pos, dented, pos), tris, obj)   # folded at one knot only
+
+
+def test_closed_flat_prims_without_normal_maps_are_self_safe():
+    """pair_receivers: a normal map (like smooth normals) may light a face turned from the light."""
+    from types import SimpleNamespace
+    from warp_blur.shadows.pairs import pair_receivers
+    from warp_blur.usd.materials import COL_NORMAL_BINDING, MATERIAL_WIDTH
+    from warp_blur.usd.units import FLAG_SMOOTH
+    table = np.zeros((3, MATERIAL_WIDTH), np.float32)
+    table[:, COL_NORMAL_BINDING] = -1
+    table[1:, 0:3] = 0.5            # 0 emissive-only, 1 and 2 diffuse
+    table[2, COL_NORMAL_BINDING] = 0    # 2 normal-mapped
+    scene = SimpleNamespace(material_table=table, tri_material=np.array([0, 1, 2, 1, 1]),
+                            tri_closed=np.array([True, True, True, False, True]),
+                            tri_flags=np.array([0, 0, 0, 0, FLAG_SMOOTH]))
+    receives, safe = pair_receivers(scene)
+    assert receives.tolist() == [False, True, True, True, True]
+    assert safe.tolist() == [True, True, False, False, False]
 
 
 def test_lights_that_change_or_are_local_keep_their_maps():

@@ -1,16 +1,16 @@
 """Lights whose shadows can fall on nothing lit: no maps are made for them.
 
-A shadow changes a pixel only where a caster comes between a light and a lit receiver. Looking
-along a distant light, a caster can shadow a receiver only where their outlines across the beam
-overlap; each object's outline is bounded by its extents along DIRECTIONS in the plane across the
-beam (a 2D k-DOP), taken over every knot of the frame's motion plan: the maps see the scene only
-between consecutive knots, linearly, and the knots' extents hold every such point. An object
-shadows itself only where it is not a convex solid: the faces of a closed, convex, flat-shaded
-solid turned away from the light are unlit by their own normal, and those are exactly the faces
-its maps would darken (a smooth-shaded one may light them through its interpolated normals, so it
-keeps its maps). Emissive-only surfaces receive nothing. The test is conservative: a light is
-dropped only when no (caster, receiver) pair can meet; local lights (sphere, disk, rect) and lights
-that move, switch or change over the shutter keep their maps.
+A shadow changes a pixel only where a caster comes between a light and a lit receiver. Looking along
+a distant light, a caster can shadow a receiver only where their outlines across the beam overlap;
+each object's outline is bounded by its extents along DIRECTIONS in the plane across the beam (a 2D
+k-DOP), taken over every knot of the frame's motion plan: the maps see the scene only between
+consecutive knots, linearly, and the knots' extents hold every such point. An object shadows itself
+only where it is not a convex solid: the faces of a closed, convex, flat-shaded solid turned away
+from the light are unlit by their own normal, and those are exactly the faces its maps would darken
+(a smooth-shaded or normal-mapped one may light them through its shading normals, so it keeps its
+maps); it must be convex at every knot. Emissive-only surfaces receive nothing. The test is
+conservative: a light is dropped only when no (caster, receiver) pair can meet; local lights
+(sphere, disk, rect) and lights that move, switch or change over the shutter keep their maps.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..usd.lights import DISTANT
+from ..usd.materials import COL_NORMAL_BINDING
 from ..usd.units import FLAG_SMOOTH
 from .layout import Sample, light_frame
 
@@ -68,12 +69,13 @@ def is_convex_solid(positions: np.ndarray, tris: np.ndarray) -> bool:
 
 def pair_receivers(scene) -> tuple[np.ndarray, np.ndarray] | None:
     """(tri_receives, tri_self_safe) of a usd.scene.Scene, (T,) bool each: the triangles whose
-    material responds to light, and those of closed, opaque, flat-shaded prims (a convex one
-    cannot shadow itself on a lit face); None when PAIR_CULLING is off."""
+    material responds to light, and those of closed, opaque, flat-shaded prims without a normal
+    map (a convex one cannot shadow itself on a lit face); None when PAIR_CULLING is off."""
     if not PAIR_CULLING:
         return None
     receives = responds_to_light(scene.material_table)[scene.tri_material]
-    return receives, scene.tri_closed & ((scene.tri_flags & FLAG_SMOOTH) == 0)
+    normal_mapped = (scene.material_table[:, COL_NORMAL_BINDING] >= 0)[scene.tri_material]
+    return receives, scene.tri_closed & ((scene.tri_flags & FLAG_SMOOTH) == 0) & ~normal_mapped
 
 
 def light_shadows_nothing(j: int, knots: list[Sample], tri_vertices: np.ndarray, tri_object: np.ndarray,
@@ -99,10 +101,9 @@ def light_shadows_nothing(j: int, knots: list[Sample], tri_vertices: np.ndarray,
     objects = np.unique(tri_object[visible])
     if len(objects) > MAX_OBJECTS:
         return False
-    centre = knots[len(knots) // 2].positions
-    for o in receivers:
+    for o in receivers:   # convex at every knot (a deforming mesh may fold between them)
         mine = tri_object == o
-        if not tri_self_safe[mine].all() or not is_convex_solid(centre, tri_vertices[mine]):
+        if not tri_self_safe[mine].all() or not all(is_convex_solid(k.positions, tri_vertices[mine]) for k in knots):
             return False
     if len(objects) == 1:
         return True
