@@ -86,6 +86,24 @@ def test_a_caster_passing_over_mid_shutter_is_caught_at_the_knots():
     assert shadows_nothing(knots_of(ends[0], cubes((0, 0, 0), (3, 3, 0.5))[0]), tris, obj)
 
 
+def test_a_vertex_shared_by_two_objects_bounds_both():
+    """An emissive sliver (object 1) leaning on the cube's corner (0.5, 0.5, 0.5) (object 0's vertex
+    7, shared), under a slanted light across whose beam that corner alone is the cube's extreme
+    along x + y': the outlines touch there, so the sliver may shadow the cube. Were the corner
+    counted for the sliver only, the cube's outline would end short of it (fails so)."""
+    row = light_row()
+    row[13:16] = (0, 0.6, 0.8)   # across the beam: x and y' = 0.6 y + 0.8 z
+    pos = np.concatenate([CORNERS, [(1.5, 0.5, 1.5), (1.5, 0.6, 1.5)]])
+    tris = np.concatenate([CUBE_TRIS, [(7, 8, 9)]])
+    obj = np.array([0] * 12 + [1])
+    knots = [Sample(pos, np.ones(13, bool), row[None])]
+    assert not shadows_nothing(knots, tris, obj, receives=obj == 0)
+    # the same sliver off the corner, on vertices of its own: apart
+    apart = np.concatenate([CORNERS, [(2.5, 0.5, 2.5), (2.5, 0.6, 2.5), (2.6, 0.5, 2.5)]])
+    tris_apart = np.concatenate([CUBE_TRIS, [(8, 9, 10)]])
+    assert shadows_nothing([Sample(apart, np.ones(13, bool), row[None])], tris_apart, obj, receives=obj == 0)
+
+
 def test_nothing_lit_means_nothing_to_shadow():
     pos, tris, obj = cubes((0, 0, 0), (0, 3, 0))
     assert shadows_nothing(knots_of(pos), tris, obj, receives=np.zeros(len(tris), bool))

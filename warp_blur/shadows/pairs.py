@@ -28,7 +28,8 @@ PAIR_CULLING = True
 DIRECTIONS = 8
 #: objects beyond this many are not compared pair by pair (their maps are kept)
 MAX_OBJECTS = 256
-#: an object is checked for convexity only up to this many (faces × vertices)
+#: an object is checked for convexity only up to this many (faces × vertices, over all knots:
+#: a larger flat closed mesh keeps its maps)
 MAX_CONVEX_WORK = 4_000_000
 #: a vertex this far (relative to the object's size) outside a face's plane makes it non-convex
 CONVEX_TOL = 1e-6
@@ -103,7 +104,10 @@ def light_shadows_nothing(j: int, knots: list[Sample], tri_vertices: np.ndarray,
         return False
     for o in receivers:   # convex at every knot (a deforming mesh may fold between them)
         mine = tri_object == o
-        if not tri_self_safe[mine].all() or not all(is_convex_solid(k.positions, tri_vertices[mine]) for k in knots):
+        faces = tri_vertices[mine]
+        if not tri_self_safe[mine].all() or len(faces) * len(np.unique(faces)) * len(knots) > MAX_CONVEX_WORK:
+            return False
+        if not all(is_convex_solid(k.positions, faces) for k in knots):
             return False
     if len(objects) == 1:
         return True
@@ -116,12 +120,12 @@ def light_shadows_nothing(j: int, knots: list[Sample], tri_vertices: np.ndarray,
     with np.errstate(over="ignore", invalid="ignore"):   # (huge coordinates: not finite, checked below)
         proj = np.stack([k.positions[used] for k in knots]) @ across.T   # (K + 1, U, D)
         v_lo, v_hi = proj.min(axis=0), proj.max(axis=0)
-    owner = np.zeros(len(used), np.int64)
-    owner[np.searchsorted(used, tris.ravel())] = np.searchsorted(objects, np.repeat(tri_object[visible], 3))
+    corner = np.searchsorted(used, tris.ravel())   # each triangle corner's vertex, and its object
+    owner = np.searchsorted(objects, np.repeat(tri_object[visible], 3))
     lo = np.full((len(objects), DIRECTIONS), np.inf)
     hi = np.full((len(objects), DIRECTIONS), -np.inf)
-    np.minimum.at(lo, owner, v_lo)
-    np.maximum.at(hi, owner, v_hi)
+    np.minimum.at(lo, owner, v_lo[corner])
+    np.maximum.at(hi, owner, v_hi[corner])
     if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
         return False
     recv = np.isin(objects, receivers)
