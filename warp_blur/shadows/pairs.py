@@ -3,21 +3,24 @@
 A shadow changes a pixel only where a caster comes between a light and a lit receiver. Looking along
 a distant light, a caster can shadow a receiver only where their outlines across the beam overlap;
 each object's outline is bounded by its extents along DIRECTIONS in the plane across the beam (a 2D
-k-DOP), taken over every knot of the frame's motion plan: the maps see the scene only between
-consecutive knots, linearly, and the knots' extents hold every such point. An object shadows itself
-only where it is not a convex solid: the faces of a closed, convex, flat-shaded solid turned away
-from the light are unlit by their own normal, and those are exactly the faces its maps would darken
-(a smooth-shaded or normal-mapped one may light them through its shading normals, so it keeps its
-maps); it must be convex at every knot. Emissive-only surfaces receive nothing. The test is
-conservative: a light is dropped only when no (caster, receiver) pair can meet; local lights
-(sphere, disk, rect) and lights that move, switch or change over the shutter keep their maps.
+k-DOP). From a local light (sphere, disk, rect), a caster can shadow a receiver only where it meets
+the hull of the receiver and the light, bounded by their extents along SOLID_DIRECTIONS, the light
+taken as a ball of its reach (every sample point of its maps lies in it). Extents are taken over
+every knot of the frame's motion plan: the maps see the scene only between consecutive knots,
+linearly, and the knots' extents hold every such point. An object shadows itself only where it is
+not a convex solid: the faces of a closed, convex, flat-shaded solid turned away from the light are
+unlit by their own normal, and those are exactly the faces its maps would darken (a smooth-shaded or
+normal-mapped one may light them through its shading normals, so it keeps its maps); it must be
+convex at every knot. Emissive-only surfaces receive nothing. The test is conservative: a light is
+dropped only when no (caster, receiver) pair can meet; lights that move, switch or change over the
+shutter keep their maps.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..usd.lights import DISTANT
+from ..usd.lights import DISK, DISTANT, RECT
 from ..usd.materials import COL_NORMAL_BINDING
 from ..usd.units import FLAG_SMOOTH
 from .layout import Sample, light_frame
@@ -26,6 +29,12 @@ from .layout import Sample, light_frame
 PAIR_CULLING = True
 #: directions across a distant light's beam along which outlines are compared
 DIRECTIONS = 8
+#: directions along which objects and a local light's reach are compared (axes, face and cube
+#: diagonals of camera space)
+SOLID_DIRECTIONS = np.array([d for d in ((1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, -1, 0), (1, 0, 1), (1, 0, -1),
+                                         (0, 1, 1), (0, 1, -1), (1, 1, 1), (1, 1, -1), (1, -1, 1), (1, -1, -1))],
+                            np.float64)
+SOLID_DIRECTIONS /= np.linalg.norm(SOLID_DIRECTIONS, axis=1, keepdims=True)
 #: objects beyond this many are not compared pair by pair (their maps are kept)
 MAX_OBJECTS = 256
 #: an object is checked for convexity only up to this many (faces × vertices, over all knots:
@@ -81,14 +90,15 @@ def pair_receivers(scene) -> tuple[np.ndarray, np.ndarray] | None:
 
 def light_shadows_nothing(j: int, knots: list[Sample], tri_vertices: np.ndarray, tri_object: np.ndarray,
                           tri_receives: np.ndarray, tri_self_safe: np.ndarray) -> bool:
-    """True when light row j can darken no lit surface of the scene given at the plan's knots:
-    no receiving object's outline across the beam meets another object's, and each receiving
-    object is a convex solid (tri_self_safe: closed, opaque and flat-shaded; checked convex here).
+    """True when light row j can darken no lit surface of the scene given at the plan's knots: no
+    object meets the region a receiving object's shadows come from (across a distant light's beam,
+    its outline; from a local light, its hull with the light), and each receiving object is a
+    convex solid (tri_self_safe: closed, opaque, flat-shaded, no normal map; checked convex here).
     tri_receives: (T,) bool, the triangles whose material responds to light."""
     if not knots or len(tri_vertices) == 0:
         return False
     row = knots[0].lights[j]
-    if int(row[0]) != DISTANT or any(not np.array_equal(k.lights[j], row) for k in knots[1:]):
+    if any(not np.array_equal(k.lights[j], row) for k in knots[1:]):
         return False
     visible = np.zeros(len(tri_vertices), bool)
     for k in knots:
@@ -111,24 +121,47 @@ def light_shadows_nothing(j: int, knots: list[Sample], tri_vertices: np.ndarray,
             return False
     if len(objects) == 1:
         return True
-    _origin, axes = light_frame(row)
-    angles = np.pi * np.arange(DIRECTIONS) / DIRECTIONS
-    across = np.cos(angles)[:, None] * axes[0] + np.sin(angles)[:, None] * axes[1]   # (D, 3)
+    kind = int(row[0])
+    if kind == DISTANT:   # outlines across the beam
+        _origin, axes = light_frame(row)
+        angles = np.pi * np.arange(DIRECTIONS) / DIRECTIONS
+        dirs = np.cos(angles)[:, None] * axes[0] + np.sin(angles)[:, None] * axes[1]   # (D, 3)
+    else:   # extents in space, beside the light's
+        dirs = SOLID_DIRECTIONS
     # each visible vertex's extents over the knots, then each object's over its vertices
     tris = tri_vertices[visible]
     used = np.unique(tris)
     with np.errstate(over="ignore", invalid="ignore"):   # (huge coordinates: not finite, checked below)
-        proj = np.stack([k.positions[used] for k in knots]) @ across.T   # (K + 1, U, D)
+        proj = np.stack([k.positions[used] for k in knots]) @ dirs.T   # (K + 1, U, D)
         v_lo, v_hi = proj.min(axis=0), proj.max(axis=0)
     corner = np.searchsorted(used, tris.ravel())   # each triangle corner's vertex, and its object
     owner = np.searchsorted(objects, np.repeat(tri_object[visible], 3))
-    lo = np.full((len(objects), DIRECTIONS), np.inf)
-    hi = np.full((len(objects), DIRECTIONS), -np.inf)
+    lo = np.full((len(objects), len(dirs)), np.inf)
+    hi = np.full((len(objects), len(dirs)), -np.inf)
     np.minimum.at(lo, owner, v_lo[corner])
     np.maximum.at(hi, owner, v_hi[corner])
     if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
         return False
-    recv = np.isin(objects, receivers)
-    meet = ((lo[:, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[:, None, :])).all(axis=2)   # (O, O)
-    np.fill_diagonal(meet, False)
-    return not meet[recv].any()
+    # where a receiver's shadows can come from: across a distant light's beam, its own outline;
+    # from a local light, the hull of it and the light (a ball of the light's reach around its
+    # position holds every sample point of its maps), which a caster must meet along every direction
+    reach_lo, reach_hi = lo, hi
+    if kind != DISTANT:
+        centre = np.asarray(row[4:7], np.float64) @ dirs.T
+        reach = light_reach(row)
+        reach_lo, reach_hi = np.minimum(lo, centre - reach), np.maximum(hi, centre + reach)
+    meet = ((lo[:, None, :] <= reach_hi[None, :, :]) & (reach_lo[None, :, :] <= hi[:, None, :])).all(axis=2)
+    np.fill_diagonal(meet, False)   # (caster, receiver): itself is the convexity test's
+    return not meet[:, np.isin(objects, receivers)].any()
+
+
+def light_reach(row: np.ndarray) -> float:
+    """Radius around a local light's position within which all its shadow maps' sample points lie
+    (layout.light_sample_offsets): a sphere light's radius, a disk's, a rect's half-diagonal."""
+    kind = int(row[0])
+    u, v = float(np.linalg.norm(row[10:13])), float(np.linalg.norm(row[13:16]))
+    if kind == RECT:
+        return float(np.hypot(u, v))
+    if kind == DISK:
+        return u
+    return max(float(row[16]), 0.0)
