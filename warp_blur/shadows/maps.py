@@ -36,7 +36,7 @@ from .casters import light_casters, used_vertex_index
 from .direct import STILL_PROBES, FaceRasterizer, still_triangles
 from .layout import (FAR, Face, LightLayout, Sample, ShadowData, ShadowOptions, distant_face, fit_faces, light_frame,
                      light_sample_offsets)
-from .pairs import light_shadows_nothing, responds_to_light
+from .pairs import responds_to_light, unneeded_lights
 from .texel_major import TexelMajorLayout
 from .vertex_passes import light_fit
 from .warped import KeyWarping
@@ -98,7 +98,8 @@ class ShadowMaps(KeyWarping):
         rows = [j for j in range(len(centre.lights)) if centre.lights[j, 17] > 0.5]
         t0 = time.perf_counter()
         if rows and knots is not None and receivers is not None:
-            needed = [j for j in rows if not light_shadows_nothing(j, knots, tri_vertices, tri_object, *receivers)]
+            unneeded = unneeded_lights(rows, knots, tri_vertices, tri_object, *receivers)
+            needed = [j for j in rows if j not in unneeded]
             self.counters["shadow_lights_unneeded"] = len(rows) - len(needed)
             rows = needed
             if not rows:

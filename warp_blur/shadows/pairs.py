@@ -90,69 +90,93 @@ def pair_receivers(scene) -> tuple[np.ndarray, np.ndarray] | None:
 
 def light_shadows_nothing(j: int, knots: list[Sample], tri_vertices: np.ndarray, tri_object: np.ndarray,
                           tri_receives: np.ndarray, tri_self_safe: np.ndarray) -> bool:
-    """True when light row j can darken no lit surface of the scene given at the plan's knots: no
-    object meets the region a receiving object's shadows come from (across a distant light's beam,
-    its outline; from a local light, its hull with the light), and each receiving object is a
-    convex solid (tri_self_safe: closed, opaque, flat-shaded, no normal map; checked convex here).
-    tri_receives: (T,) bool, the triangles whose material responds to light."""
-    if not knots or len(tri_vertices) == 0:
-        return False
-    row = knots[0].lights[j]
-    if any(not np.array_equal(k.lights[j], row) for k in knots[1:]):
-        return False
+    """True when light row j can darken no lit surface of the scene given at the plan's knots
+    (unneeded_lights for one light)."""
+    return j in unneeded_lights([j], knots, tri_vertices, tri_object, tri_receives, tri_self_safe)
+
+
+def unneeded_lights(rows: list[int], knots: list[Sample], tri_vertices: np.ndarray, tri_object: np.ndarray,
+                    tri_receives: np.ndarray, tri_self_safe: np.ndarray) -> set[int]:
+    """The light rows of `rows` that can darken no lit surface of the scene given at the plan's
+    knots: no object meets the region a receiving object's shadows come from (across a distant
+    light's beam, its outline; from a local light, its hull with the light), and each receiving
+    object is a convex solid (tri_self_safe: closed, opaque, flat-shaded, no normal map; checked
+    convex here). tri_receives: (T,) bool, the triangles whose material responds to light. What
+    does not depend on the light (receivers, convexity, the knots' vertices) is found once."""
+    if not rows or not knots or len(tri_vertices) == 0:
+        return set()
+    still = [j for j in rows if all(np.array_equal(k.lights[j], knots[0].lights[j]) for k in knots[1:])]
+    if not still:
+        return set()
     visible = np.zeros(len(tri_vertices), bool)
     for k in knots:
         visible |= k.tri_visible if len(k.tri_visible) else True
     lit = visible & tri_receives
     if not lit.any():
-        return True
+        return set(still)
     if (lit & ~tri_self_safe).any():   # an open or smooth receiver (the usual ground): no further look
-        return False
+        return set()
     receivers = np.unique(tri_object[lit])
     objects = np.unique(tri_object[visible])
     if len(objects) > MAX_OBJECTS:
-        return False
+        return set()
     for o in receivers:   # convex at every knot (a deforming mesh may fold between them)
         mine = tri_object == o
         faces = tri_vertices[mine]
         if not tri_self_safe[mine].all() or len(faces) * len(np.unique(faces)) * len(knots) > MAX_CONVEX_WORK:
-            return False
+            return set()
         if not all(is_convex_solid(k.positions, faces) for k in knots):
-            return False
+            return set()
     if len(objects) == 1:
-        return True
-    kind = int(row[0])
-    if kind == DISTANT:   # outlines across the beam
-        _origin, axes = light_frame(row)
-        angles = np.pi * np.arange(DIRECTIONS) / DIRECTIONS
-        dirs = np.cos(angles)[:, None] * axes[0] + np.sin(angles)[:, None] * axes[1]   # (D, 3)
-    else:   # extents in space, beside the light's
-        dirs = SOLID_DIRECTIONS
-    # each visible vertex's extents over the knots, then each object's over its vertices
+        return set(still)
+    # each visible vertex at every knot, once; each triangle corner's vertex, and its object
     tris = tri_vertices[visible]
     used = np.unique(tris)
-    with np.errstate(over="ignore", invalid="ignore"):   # (huge coordinates: not finite, checked below)
-        proj = np.stack([k.positions[used] for k in knots]) @ dirs.T   # (K + 1, U, D)
-        v_lo, v_hi = proj.min(axis=0), proj.max(axis=0)
-    corner = np.searchsorted(used, tris.ravel())   # each triangle corner's vertex, and its object
+    stacked = np.stack([k.positions[used] for k in knots])   # (K + 1, U, 3)
+    corner = np.searchsorted(used, tris.ravel())
     owner = np.searchsorted(objects, np.repeat(tri_object[visible], 3))
-    lo = np.full((len(objects), len(dirs)), np.inf)
-    hi = np.full((len(objects), len(dirs)), -np.inf)
-    np.minimum.at(lo, owner, v_lo[corner])
-    np.maximum.at(hi, owner, v_hi[corner])
-    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
-        return False
-    # where a receiver's shadows can come from: across a distant light's beam, its own outline;
-    # from a local light, the hull of it and the light (a ball of the light's reach around its
-    # position holds every sample point of its maps), which a caster must meet along every direction
-    reach_lo, reach_hi = lo, hi
-    if kind != DISTANT:
-        centre = np.asarray(row[4:7], np.float64) @ dirs.T
-        reach = light_reach(row)
-        reach_lo, reach_hi = np.minimum(lo, centre - reach), np.maximum(hi, centre + reach)
-    meet = ((lo[:, None, :] <= reach_hi[None, :, :]) & (reach_lo[None, :, :] <= hi[:, None, :])).all(axis=2)
-    np.fill_diagonal(meet, False)   # (caster, receiver): itself is the convexity test's
-    return not meet[:, np.isin(objects, receivers)].any()
+    is_receiver = np.isin(objects, receivers)
+
+    def extents(dirs: np.ndarray):
+        """(lo, hi) (O, D) of each object along dirs (D, 3) over the knots, or None if not finite."""
+        with np.errstate(over="ignore", invalid="ignore"):   # (huge coordinates: not finite, checked below)
+            proj = stacked @ dirs.T   # (K + 1, U, D)
+            v_lo, v_hi = proj.min(axis=0), proj.max(axis=0)
+        lo = np.full((len(objects), len(dirs)), np.inf)
+        hi = np.full((len(objects), len(dirs)), -np.inf)
+        np.minimum.at(lo, owner, v_lo[corner])
+        np.maximum.at(hi, owner, v_hi[corner])
+        return (lo, hi) if np.isfinite(lo).all() and np.isfinite(hi).all() else None
+
+    local = [j for j in still if int(knots[0].lights[j][0]) != DISTANT]
+    solid = extents(SOLID_DIRECTIONS) if local else None   # shared by the local lights
+    out = set()
+    for j in still:
+        row = knots[0].lights[j]
+        if int(row[0]) == DISTANT:   # outlines across the beam
+            _origin, axes = light_frame(row)
+            angles = np.pi * np.arange(DIRECTIONS) / DIRECTIONS
+            dirs = np.cos(angles)[:, None] * axes[0] + np.sin(angles)[:, None] * axes[1]   # (D, 3)
+            ext = extents(dirs)
+        else:   # extents in space, beside the light's
+            dirs = SOLID_DIRECTIONS
+            ext = solid
+        if ext is None:
+            continue
+        lo, hi = ext
+        # where a receiver's shadows can come from: across a distant light's beam, its own outline;
+        # from a local light, the hull of it and the light (a ball of the light's reach around its
+        # position holds every sample point of its maps), which a caster must meet along every direction
+        reach_lo, reach_hi = lo, hi
+        if int(row[0]) != DISTANT:
+            centre = np.asarray(row[4:7], np.float64) @ dirs.T
+            reach = light_reach(row)
+            reach_lo, reach_hi = np.minimum(lo, centre - reach), np.maximum(hi, centre + reach)
+        meet = ((lo[:, None, :] <= reach_hi[None, :, :]) & (reach_lo[None, :, :] <= hi[:, None, :])).all(axis=2)
+        np.fill_diagonal(meet, False)   # (caster, receiver): itself is the convexity test's
+        if not meet[:, is_receiver].any():
+            out.add(j)
+    return out
 
 
 def light_reach(row: np.ndarray) -> float:
