@@ -38,7 +38,7 @@ def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, diffuse: wp.vec3, f0: wp.vec3, roug
     nl = wp.dot(n, l)
     nv = wp.dot(n, v)
     result = diffuse / PI
-    if nl > 0.0 and nv > 0.0 and wp.length(f0) > 0.0:
+    if nl > 0.0 and nv > 0.0 and wp.length_sq(f0) > 0.0:
         h = wp.normalize(l + v)
         # clamped to 1 too: unit vectors rounded in float32 can give a dot product just above 1,
         # where a smooth surface's GGX denominator nh² (a² - 1) + 1 cancels to 0 (an infinite pixel)
@@ -129,15 +129,26 @@ def entry_point_velocity(geo: Geometry, e: int, vi: wp.vec3i, hit: wp.vec4) -> w
     sharp instant's vertex velocities when the geometry has them (else zero)."""
     k0 = geo.entry_k0[e]
     k1 = geo.entry_k1[e]
+    if k0 == k1:
+        return corners_velocity(geo, e, vi, hit, wp.vec3(0.0), wp.vec3(0.0), wp.vec3(0.0))
+    return corners_velocity(geo, e, vi, hit, geo.positions[k1, vi[0]] - geo.positions[k0, vi[0]],
+                            geo.positions[k1, vi[1]] - geo.positions[k0, vi[1]],
+                            geo.positions[k1, vi[2]] - geo.positions[k0, vi[2]])
+
+
+@wp.func(inline=True)
+def corners_velocity(geo: Geometry, e: int, vi: wp.vec3i, hit: wp.vec4, da: wp.vec3, db: wp.vec3,
+                     dc: wp.vec3) -> wp.vec3:
+    """entry_point_velocity with the corners' changes over the entry's span (da, db, dc: each
+    vertex at k1 less at k0) given."""
+    k0 = geo.entry_k0[e]
+    k1 = geo.entry_k1[e]
     wb = hit[2]
     wc = hit[3]
     if k0 == k1:
         if geo.has_velocities == 0:
             return wp.vec3(0.0, 0.0, 0.0)
         return (1.0 - wb - wc) * geo.velocities[vi[0]] + wb * geo.velocities[vi[1]] + wc * geo.velocities[vi[2]]
-    da = geo.positions[k1, vi[0]] - geo.positions[k0, vi[0]]
-    db = geo.positions[k1, vi[1]] - geo.positions[k0, vi[1]]
-    dc = geo.positions[k1, vi[2]] - geo.positions[k0, vi[2]]
     return ((1.0 - wb - wc) * da + wb * db + wc * dc) * (float(geo.num_segments) / float(k1 - k0))
 
 
@@ -192,20 +203,26 @@ def surface_normal(geo: Geometry, sh: Shading, e: int, alpha: float, v: wp.vec3,
     """The shading normal at the hit of entry e (interpolation alpha, barycentrics hit[2:4]):
     interpolated vertex normals where the triangle has them, else its face normal, perturbed by
     its material's normal map, turned towards the view vector v's side of the face."""
+    vi = geo.tri_vertices[geo.entry_tri[e]]
+    return corners_normal(geo, sh, e, alpha, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
+                          entry_vertex(geo, e, vi[2], alpha), v, hit)
+
+
+@wp.func(inline=True)
+def corners_normal(geo: Geometry, sh: Shading, e: int, alpha: float, a: wp.vec3, b: wp.vec3, c: wp.vec3, v: wp.vec3,
+                   hit: wp.vec4) -> wp.vec3:
+    """surface_normal with the triangle's corners at alpha (a, b, c: entry_vertex's) given."""
     tri = geo.entry_tri[e]
     m = geo.tri_material[tri]
     wb = hit[2]
     wc = hit[3]
     vi = geo.tri_vertices[tri]
-    a = entry_vertex(geo, e, vi[0], alpha)
-    b = entry_vertex(geo, e, vi[1], alpha)
-    c = entry_vertex(geo, e, vi[2], alpha)
     ng = wp.normalize(wp.cross(b - a, c - a))
     flags = geo.tri_flags[tri]
     n = ng
     if (flags & 2) != 0:
         ns = (1.0 - wb - wc) * entry_normal(geo, e, vi[0], alpha) + wb * entry_normal(geo, e, vi[1], alpha) + wc * entry_normal(geo, e, vi[2], alpha)
-        if wp.length(ns) > 0.0:
+        if wp.length_sq(ns) > 0.0:
             n = wp.normalize(ns)
     if sh.materials[m, 22] >= 0.0 and geo.tri_uvs.shape[0] >= 3 * tri + 3:
         n = normal_mapped(geo, sh, tri, int(sh.materials[m, 22]), a, b, c, n, wb, wc)
@@ -240,11 +257,29 @@ def shade_entry_hit(view: View, geo: Geometry, sh: Shading, e: int, alpha: float
     return shade_entry_hit_span(view, geo, sh, e, alpha, u, 0.0, o, d, hit)
 
 
-@wp.func
+@wp.func(inline=True)
 def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: float, u: float, du: float,
                          o: wp.vec3, d: wp.vec3, hit: wp.vec4) -> wp.vec3:
     """Radiance leaving the hit point of entry e (at interpolation alpha, shutter time u), with
     shadows averaged over the shutter span [u - du/2, u + du/2] that the caller stands it for."""
+    vi = geo.tri_vertices[geo.entry_tri[e]]
+    p0 = geo.positions[geo.entry_k0[e], vi[0]]
+    q0 = geo.positions[geo.entry_k0[e], vi[1]]
+    r0 = geo.positions[geo.entry_k0[e], vi[2]]
+    da = geo.positions[geo.entry_k1[e], vi[0]] - p0
+    db = geo.positions[geo.entry_k1[e], vi[1]] - q0
+    dc = geo.positions[geo.entry_k1[e], vi[2]] - r0
+    return shade_corners_span(view, geo, sh, e, alpha, p0 + alpha * da, q0 + alpha * db, r0 + alpha * dc, da, db, dc,
+                              u, du, o, d, hit)
+
+
+@wp.func
+def shade_corners_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: float, a: wp.vec3, b: wp.vec3,
+                       c: wp.vec3, da: wp.vec3, db: wp.vec3, dc: wp.vec3, u: float, du: float, o: wp.vec3,
+                       d: wp.vec3, hit: wp.vec4) -> wp.vec3:
+    """shade_entry_hit_span with the triangle's corners at alpha (a, b, c: entry_vertex's) and
+    their changes over the entry's span (da, db, dc) given: the analytic resolve has them already
+    (radiance.radiance_at)."""
     tri = geo.entry_tri[e]
     m = geo.tri_material[tri]
     emissive = wp.vec3(sh.materials[m, 3], sh.materials[m, 4], sh.materials[m, 5])
@@ -270,9 +305,9 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
         metallic = sh.materials[m, 19]
         if sh.materials[m, 23] > 0.5:
             # one texture read for both (a metallic-roughness texture): the same sample, two channels
-            c = binding_sample(sh.tex, b_rough, uv, lod)
-            roughness = wp.clamp(binding_output(sh.tex, b_rough, c)[0], 0.02, 1.0)
-            metallic = wp.clamp(binding_output(sh.tex, b_metal, c)[0], 0.0, 1.0)
+            texel = binding_sample(sh.tex, b_rough, uv, lod)
+            roughness = wp.clamp(binding_output(sh.tex, b_rough, texel)[0], 0.02, 1.0)
+            metallic = wp.clamp(binding_output(sh.tex, b_metal, texel)[0], 0.0, 1.0)
         else:
             if b_rough >= 0:
                 roughness = wp.clamp(binding_value(sh.tex, b_rough, uv, lod)[0], 0.02, 1.0)
@@ -282,14 +317,14 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
             dielectric = sh.materials[m, 18]
             f0 = (1.0 - metallic) * wp.vec3(dielectric, dielectric, dielectric) + metallic * diffuse
             diffuse = diffuse * (1.0 - metallic)
-    if wp.length(diffuse) == 0.0 and wp.length(f0) == 0.0:
+    if wp.length_sq(diffuse) == 0.0 and wp.length_sq(f0) == 0.0:
         return emissive
     vi = geo.tri_vertices[tri]
     p = o + d * hit[1]
     v = view_vector(view, p)
-    n = surface_normal(geo, sh, e, alpha, v, hit)
+    n = corners_normal(geo, sh, e, alpha, a, b, c, v, hit)
     out = emissive + wp.cw_mul(diffuse, dome_ambient(sh, n)) + wp.cw_mul(f0, sh.dome)
-    vel = entry_point_velocity(geo, e, vi, hit)
+    vel = corners_velocity(geo, e, vi, hit, da, db, dc)
     # lights whose shadows cannot fall on this part of the entry (shadow_free.py): no lookup
     free = int(0)
     if geo.shadow_free.shape[0] >= (e + 1) * sh.num_lights:

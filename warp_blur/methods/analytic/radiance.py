@@ -20,7 +20,7 @@ from __future__ import annotations
 import warp as wp
 
 from ...kernels.kernel_types import Geometry, Shading, View
-from ...kernels.shading import max_component, shade_entry_hit_span
+from ...kernels.shading import max_component, shade_corners_span
 from .moving import Moving, plane_hit
 
 SHADE_TOLERANCE = wp.constant(1.0 / 256.0)
@@ -32,10 +32,14 @@ def radiance_at(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: wp
                 span: float) -> wp.vec3:
     """Radiance of entry e (its triangle m) seen along the ray at entry time s, with shadows
     averaged over `span` (shutter fraction) around it (0: at that instant)."""
-    a = m.a0 + s * (m.a1 - m.a0)
-    b = m.b0 + s * (m.b1 - m.b0)
-    c = m.c0 + s * (m.c1 - m.c0)
-    return shade_entry_hit_span(view, geo, sh, e, s, m.u0 + s * (m.u1 - m.u0), span, o, d, plane_hit(o, d, a, b, c))
+    da = m.a1 - m.a0
+    db = m.b1 - m.b0
+    dc = m.c1 - m.c0
+    a = m.a0 + s * da
+    b = m.b0 + s * db
+    c = m.c0 + s * dc
+    return shade_corners_span(view, geo, sh, e, s, a, b, c, da, db, dc, m.u0 + s * (m.u1 - m.u0), span, o, d,
+                              plane_hit(o, d, a, b, c))
 
 
 @wp.func
@@ -56,8 +60,8 @@ def entry_emissive_only(geo: Geometry, sh: Shading, e: int) -> int:
     """1 when entry e's material reflects nothing (its radiance is its constant emission)."""
     mat = geo.tri_material[geo.entry_tri[e]]
     if sh.materials[mat, 10] < 0.5 and sh.materials[mat, 21] < 0.5:
-        if wp.length(wp.vec3(sh.materials[mat, 0], sh.materials[mat, 1], sh.materials[mat, 2])) == 0.0:
-            if wp.length(wp.vec3(sh.materials[mat, 6], sh.materials[mat, 7], sh.materials[mat, 8])) == 0.0:
+        if wp.length_sq(wp.vec3(sh.materials[mat, 0], sh.materials[mat, 1], sh.materials[mat, 2])) == 0.0:
+            if wp.length_sq(wp.vec3(sh.materials[mat, 6], sh.materials[mat, 7], sh.materials[mat, 8])) == 0.0:
                 return 1
     return 0
 
