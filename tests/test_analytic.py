@@ -211,11 +211,15 @@ def test_light_switched_off_mid_shutter(scene_path):
     out = wb.render(path, frame=1, resolution=res, method="analytic", time_bits=1024, aovs=())
     assert out.stats["light_segments"] == 32
     assert any("lights change faster" in w for w in out.stats["warnings"])
-    # once per stage: a copy of the stage says it too, the same stage not again
+    # once per Renderer: a copy of the stage says it too, the same stage opened again too, a
+    # Renderer's next frame not again
     copy = scene_path()
     Usd.Stage.Open(path).Export(copy)
     said = [sum("lights change faster" in w for w in wb.render(p, frame=1, resolution=res, method="analytic",
                                                               aovs=()).stats["warnings"]) for p in (copy, path)]
+    assert said == [1, 1]
+    renderer = wb.Renderer(path, resolution=res, settings=wb.RenderSettings(method="analytic", aovs=()))
+    said = [sum("lights change faster" in w for w in renderer.render(f).stats["warnings"]) for f in (1, 1)]
     assert said == [1, 0]
     assert rmse(out.rgba, ref.rgba) <= 0.01
     for method, kw in (("stochastic", {"samples": 256}), ("velocity", {})):

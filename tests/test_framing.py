@@ -92,15 +92,19 @@ def test_unframeable_geometry_reports_what_is_wrong_with_it(scene_path):
 
 
 def test_each_camera_less_stage_says_it_is_framed(scene_path):
-    """The framing camera's warning is said once per stage, not once per process: a pipeline
-    rendering many camera-less assets in one process hears it for each, once (and this file's
-    tests do not depend on which ran first)."""
+    """The framing camera's warning is said once per Renderer, not once per process: a pipeline
+    rendering many camera-less assets in one process hears it for each, and each result's stats
+    say it, the same stage opened again included (it used to be said once per stage and process,
+    so a second render of it reported nothing); a Renderer's later frames do not repeat it (and
+    this file's tests do not depend on which ran first)."""
     first, second = _box_stage(scene_path(), "Y"), _box_stage(scene_path(), "Z")
     heard = []
     for path in (first, second, first):
         result = wb.render(path, frame=1, method="accumulation", samples=1, resolution=(32, 24))
         heard.append(sum("computed camera" in w for w in result.stats["warnings"]))
-    assert heard == [1, 1, 0]
+    assert heard == [1, 1, 1]
+    renderer = wb.Renderer(first, resolution=(32, 24), settings=wb.RenderSettings(method="accumulation", samples=1))
+    assert [sum("computed camera" in w for w in renderer.render(f).stats["warnings"]) for f in (1, 2)] == [1, 0]
 
 
 def test_a_renderers_warnings_are_its_own_whichever_renders_first(scene_path):

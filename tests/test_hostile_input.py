@@ -67,7 +67,7 @@ def test_non_finite_inputs_fall_back_with_a_warning(tmp_path, case, method):
         text = text.replace(key, value)
     path = tmp_path / "stage.usda"
     path.write_text(text)
-    log.reset()   # warnings are said once per process and prim
+    log.reset()   # (outside a Renderer warnings are said once per process and prim)
     result = wb.render(str(path), frame=1, method=method, resolution=(32, 24), samples=2)
     assert np.isfinite(result.rgba).all()
     assert result.rgba[12, 16, :3].max() > 0.01      # the quad is lit, not black

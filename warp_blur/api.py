@@ -94,13 +94,16 @@ class Renderer:
 
     def __init__(self, scene_path: str, *, camera: str | None = None,
                  resolution: tuple[int, int] | None = None, settings: RenderSettings | None = None) -> None:
-        log.take_warnings()   # what a failed render or Renderer said (logged already) is not ours
+        # this Renderer's warnings: said once each here, whatever other stages and Renderers in
+        # the process said, and only here (core/log.py)
+        self._warnings = log.WarningScope()
         self.settings = settings or RenderSettings()
         self.scene_path = scene_path
-        self.stage = open_stage(scene_path)
-        self.camera = choose_camera(self.stage, camera)
-        self.resolution = choose_resolution(self.stage, resolution)
-        self.conform = conform_policy(self.stage)
+        with log.scope(self._warnings):
+            self.stage = open_stage(scene_path)
+            self.camera = choose_camera(self.stage, camera)
+            self.resolution = choose_resolution(self.stage, resolution)
+            self.conform = conform_policy(self.stage)
         check_frame_fits(self.settings.method, *self.resolution, self.settings.spatial_samples,
                          self.settings.frame_memory_limit_mb)
         init_warp(self.settings.device)
@@ -110,9 +113,8 @@ class Renderer:
         # geometry units kept across frames where nothing they were read from can change
         self.units = UnitCache(self.stage, ignored=FRAMING_CAMERA_PATH)
         self._lock = threading.Lock()
-        # what opening the stage said (its computed camera, its shutter), for the first frame's
-        # stats: not another Renderer's, whichever renders first
-        self._opening_warnings = log.take_warnings()
+        # what opening the stage said (its computed camera, its shutter), for the first frame's stats
+        self._opening_warnings = self._warnings.take()
 
     def check_frame(self, frame: float) -> None:
         """Frames that are not finite, or outside the stage's authored time range, are a user error
@@ -132,11 +134,11 @@ class Renderer:
         """Render one frame (a time code inside the stage's authored range). Calls from several
         threads take turns: a frame places the framing camera in the stage and may add to the
         kept material table (each frame still uses every core)."""
-        with self._lock:
+        with self._lock, log.scope(self._warnings):
             try:
                 return self._render(frame)
             except BaseException as exc:
-                log.take_warnings()   # a failed frame's warnings (logged with it) are not the next frame's
+                self._warnings.take()   # a failed frame's warnings (logged with it) are not the next frame's
                 if isinstance(exc, Tf.ErrorException):   # USD's own verification failing on the stage's data
                     raise StageError(f"USD cannot evaluate {self.scene_path} at frame {frame:g}: "
                                      f"{usd_error_text(exc)}") from None
@@ -179,7 +181,7 @@ class Renderer:
             "triangles": scene.num_triangles, "prims": len(scene.units), "prims_reused": scene.units_reused,
             "time": {**{k: round(v, 6) for k, v in ctx.timings.items()}, "total": round(total, 6)},
             "triangles_per_second": scene.num_triangles / total if total > 0 else math.inf,
-            **ctx.counters, "warnings": self._opening_warnings + log.take_warnings(),
+            **ctx.counters, "warnings": self._opening_warnings + self._warnings.take(),
         }
         self._opening_warnings = []
         metadata = {

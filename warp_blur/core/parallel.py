@@ -12,7 +12,7 @@ from typing import Callable, Generic, Iterable, TypeVar
 
 import warp as wp
 
-from . import progress
+from . import log, progress
 
 _pools: dict[tuple[str, int], ThreadPoolExecutor] = {}
 _pools_lock = threading.Lock()
@@ -75,7 +75,8 @@ class Background(Generic[T]):
                 self._value = fn()
             except BaseException as error:   # re-raised by result(), in the caller's thread
                 self._error = error
-        self._thread = threading.Thread(target=run, name=f"warp_blur_{name}", daemon=True)
+        # (warnings said there go to the caller's scope: core/log.py)
+        self._thread = threading.Thread(target=log.carried(run), name=f"warp_blur_{name}", daemon=True)
         self._thread.start()
 
     def wait(self) -> None:
@@ -102,7 +103,7 @@ def _run_bands(kernel, device: str, threads: int, starts: range, run: Callable[[
         for start in starts:
             run_and_report(start)
         return
-    list(_pool(threads).map(run_and_report, starts))
+    list(_pool(threads).map(log.carried(run_and_report), starts))
 
 
 def map_threads(fn: Callable, items: list, threads: int | None = None) -> list:
@@ -111,7 +112,7 @@ def map_threads(fn: Callable, items: list, threads: int | None = None) -> list:
     threads = threads or default_threads()
     if threads == 1 or len(items) <= 1 or launches_serially():
         return [fn(x) for x in items]
-    return list(_pool(threads).map(fn, items))
+    return list(_pool(threads).map(log.carried(fn), items))
 
 
 def run_prepared(steps: Iterable[Callable[[], None]]) -> None:
@@ -129,6 +130,7 @@ def run_prepared(steps: Iterable[Callable[[], None]]) -> None:
     accumulation-64 frame 5.2 -> 6.1 s)."""
     iterator = iter(steps)
 
+    @log.carried   # (the steps' warnings go to the caller's scope)
     def advance():
         _mark_serial_thread()   # (its launches would otherwise queue behind the pass it overlaps)
         t0 = time.perf_counter()

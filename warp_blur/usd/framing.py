@@ -84,8 +84,8 @@ def define_framing_camera(stage: Usd.Stage) -> UsdGeom.Camera:
         cam.CreateHorizontalApertureAttr(_H_APERTURE)
         cam.CreateVerticalApertureAttr(_V_APERTURE)
         cam.MakeMatrixXform()
-    # once per stage (a pipeline's process renders many assets; keyed once per process, only the
-    # first camera-less stage was told, and a test's warning depended on what ran before it)
+    # once per stage within a scope (core/log.py: a Renderer's); keyed by the prim path alone, only
+    # the first camera-less stage of a scope would be told
     warn_once(f"framing-camera:{stage.GetRootLayer().identifier}",
               "the stage has no camera: rendering through a computed camera that frames its bounds (pass "
               "--camera to choose one)")

@@ -268,7 +268,7 @@ def plan_motion(scene: Scene, proj: Projection, shutter_time, max_segments: int 
                   f"accuracy)")
     if lights_pending:
         light_k = min(m, MAX_LIGHT_SEGMENTS)
-        warn_once(f"light-segments-cap:{scene.stage.GetRootLayer().identifier}",   # once per stage
+        warn_once(f"light-segments-cap:{scene.stage.GetRootLayer().identifier}",   # once per stage and scope
                   f"the lights change faster over the shutter than {light_k} linear segments follow within "
                   f"{LIGHT_TOLERANCE:g} (a switch or a held value?); rendering them linear between "
                   f"{light_k + 1} knots")
