@@ -97,13 +97,20 @@ class Renderer:
         # this Renderer's warnings: said once each here, whatever other stages and Renderers in
         # the process said, and only here (core/log.py)
         self._warnings = log.WarningScope()
+        with log.scope(self._warnings):
+            self._open(scene_path, camera, resolution, settings)
+        # what opening the stage said (its computed camera, its shutter), for the first frame's stats
+        self._opening_warnings = self._warnings.take()
+
+    def _open(self, scene_path: str, camera: str | None, resolution: tuple[int, int] | None,
+              settings: RenderSettings | None) -> None:
+        """Open the stage and choose the camera, resolution and caches (in the Renderer's scope)."""
         self.settings = settings or RenderSettings()
         self.scene_path = scene_path
-        with log.scope(self._warnings):
-            self.stage = open_stage(scene_path)
-            self.camera = choose_camera(self.stage, camera)
-            self.resolution = choose_resolution(self.stage, resolution)
-            self.conform = conform_policy(self.stage)
+        self.stage = open_stage(scene_path)
+        self.camera = choose_camera(self.stage, camera)
+        self.resolution = choose_resolution(self.stage, resolution)
+        self.conform = conform_policy(self.stage)
         check_frame_fits(self.settings.method, *self.resolution, self.settings.spatial_samples,
                          self.settings.frame_memory_limit_mb)
         init_warp(self.settings.device)
@@ -113,8 +120,6 @@ class Renderer:
         # geometry units kept across frames where nothing they were read from can change
         self.units = UnitCache(self.stage, ignored=FRAMING_CAMERA_PATH)
         self._lock = threading.Lock()
-        # what opening the stage said (its computed camera, its shutter), for the first frame's stats
-        self._opening_warnings = self._warnings.take()
 
     def check_frame(self, frame: float) -> None:
         """Frames that are not finite, or outside the stage's authored time range, are a user error
