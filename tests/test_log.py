@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import threading
 
-from authoring import add_camera, add_quad, new_stage
+from authoring import add_camera, add_quad, add_textured_material, bind, new_stage, set_st
 
 import warp_blur as wb
 from warp_blur.core import log, parallel
@@ -64,6 +64,23 @@ def test_renderers_in_two_threads_report_only_their_own_warnings(scene_path):
         for result in results[name]:
             assert len(said_about(result, name)) == 1, result.stats["warnings"]
             assert not said_about(result, other), result.stats["warnings"]
+
+
+def test_each_renderer_hears_of_an_unreadable_texture_the_process_read_once(scene_path, tmp_path):
+    """Images are read once per process (usd/textures.py keeps them, and keeps a failure as
+    None): a second Renderer of a stage whose texture cannot be read still reports it (the cache
+    used to answer without a word, so only the first Renderer's stats said it)."""
+    (tmp_path / "broken.png").write_bytes(b"not an image at all")
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    quad = add_quad(stage, "/World/Quad", 1.0, 1.0)
+    set_st(quad, [(0, 0), (1, 0), (1, 1), (0, 1)])
+    bind(quad.GetPrim(), add_textured_material(stage, "/World/Looks/Broken", "broken.png"))
+    stage.GetRootLayer().Save()
+    for _ in range(2):
+        result = wb.render(path, frame=1, resolution=RES, method="analytic")
+        assert len(said_about(result, "broken.png")) == 1, result.stats["warnings"]
 
 
 def test_work_carried_to_other_threads_warns_into_the_callers_scope():

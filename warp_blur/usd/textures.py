@@ -37,6 +37,9 @@ UDIM_TILES = 100        # tiles 1001..1100: 10 across, 10 up
 MAX_TEXTURE_SIDE = 8192
 
 _image_cache: dict[tuple, list[np.ndarray] | None] = {}
+#: why an image in _image_cache (None there) could not be read: said again by every Renderer that
+#: reads it (warnings are said once per Renderer, core/log.py; the cache is the process's)
+_image_errors: dict[tuple, str] = {}
 _cache_lock = threading.Lock()
 
 
@@ -82,8 +85,12 @@ def read_image_keyed(resolved_path: str, color_space: str) -> tuple[tuple, list[
     texels exactly, so a frame's texel atlas can be matched to an earlier frame's upload."""
     key = (resolved_path, color_space, file_stamp(resolved_path))
     with _cache_lock:
-        if key in _image_cache:
-            return key, _image_cache[key]
+        cached = key in _image_cache
+        levels, error = _image_cache.get(key), _image_errors.get(key)
+    if cached:
+        if error is not None:
+            warn_once(f"texture:{resolved_path}", error)
+        return key, levels
     levels = None
     try:
         from PIL import Image
@@ -107,8 +114,11 @@ def read_image_keyed(resolved_path: str, color_space: str) -> tuple[tuple, list[
             rgba[..., :3] = srgb_to_linear(rgba[..., :3])
         levels = mip_chain(np.ascontiguousarray(rgba, np.float32))
     except Exception as exc:   # any unreadable image: USD renders the fallback
-        warn_once(f"texture:{resolved_path}", f"texture {resolved_path} cannot be read ({type(exc).__name__}: "
-                                              f"{str(exc)[:80]}); using the node's fallback")
+        error = (f"texture {resolved_path} cannot be read ({type(exc).__name__}: {str(exc)[:80]}); "
+                 f"using the node's fallback")
+        warn_once(f"texture:{resolved_path}", error)
+        with _cache_lock:
+            _image_errors[key] = error
     with _cache_lock:
         _image_cache[key] = levels
     return key, levels
