@@ -18,7 +18,7 @@ import warp as wp
 
 from .kernel_types import Geometry, Shading, View
 from .dome import dome_ambient
-from .rays import entry_normal, entry_vertex
+from .rays import entry_normal
 from .light_table import light_value, light_vec
 from .shadow_free import cell_of
 from .shadow_lookup import light_taps_steady, light_visibility
@@ -122,18 +122,26 @@ def direct_light(sh: Shading, j: int, u: float, du: float, p: wp.vec3, vel: wp.v
     return out
 
 
+@wp.func(inline=True)
+def entry_corners(geo: Geometry, e: int, vi: wp.vec3i, alpha: float):
+    """(a, b, c, da, db, dc): entry e's corners (vertices vi) at interpolation alpha, as
+    rays.entry_vertex gives them, and each one's change from knot k0 to k1 (zero for a static entry)."""
+    p0 = geo.positions[geo.entry_k0[e], vi[0]]
+    q0 = geo.positions[geo.entry_k0[e], vi[1]]
+    r0 = geo.positions[geo.entry_k0[e], vi[2]]
+    da = geo.positions[geo.entry_k1[e], vi[0]] - p0
+    db = geo.positions[geo.entry_k1[e], vi[1]] - q0
+    dc = geo.positions[geo.entry_k1[e], vi[2]] - r0
+    return p0 + alpha * da, q0 + alpha * db, r0 + alpha * dc, da, db, dc
+
+
 @wp.func
 def entry_point_velocity(geo: Geometry, e: int, vi: wp.vec3i, hit: wp.vec4) -> wp.vec3:
     """Camera-space velocity (units per shutter) of the surface point of entry e at barycentrics
     (1 - w_b - w_c, w_b, w_c) = hit[2:4]: from its span's knots, or for a static entry from the
     sharp instant's vertex velocities when the geometry has them (else zero)."""
-    k0 = geo.entry_k0[e]
-    k1 = geo.entry_k1[e]
-    if k0 == k1:
-        return corners_velocity(geo, e, vi, hit, wp.vec3(0.0), wp.vec3(0.0), wp.vec3(0.0))
-    return corners_velocity(geo, e, vi, hit, geo.positions[k1, vi[0]] - geo.positions[k0, vi[0]],
-                            geo.positions[k1, vi[1]] - geo.positions[k0, vi[1]],
-                            geo.positions[k1, vi[2]] - geo.positions[k0, vi[2]])
+    _a, _b, _c, da, db, dc = entry_corners(geo, e, vi, 0.0)
+    return corners_velocity(geo, e, vi, hit, da, db, dc)
 
 
 @wp.func(inline=True)
@@ -203,15 +211,14 @@ def surface_normal(geo: Geometry, sh: Shading, e: int, alpha: float, v: wp.vec3,
     """The shading normal at the hit of entry e (interpolation alpha, barycentrics hit[2:4]):
     interpolated vertex normals where the triangle has them, else its face normal, perturbed by
     its material's normal map, turned towards the view vector v's side of the face."""
-    vi = geo.tri_vertices[geo.entry_tri[e]]
-    return corners_normal(geo, sh, e, alpha, entry_vertex(geo, e, vi[0], alpha), entry_vertex(geo, e, vi[1], alpha),
-                          entry_vertex(geo, e, vi[2], alpha), v, hit)
+    a, b, c, _da, _db, _dc = entry_corners(geo, e, geo.tri_vertices[geo.entry_tri[e]], alpha)
+    return corners_normal(geo, sh, e, alpha, a, b, c, v, hit)
 
 
 @wp.func(inline=True)
 def corners_normal(geo: Geometry, sh: Shading, e: int, alpha: float, a: wp.vec3, b: wp.vec3, c: wp.vec3, v: wp.vec3,
                    hit: wp.vec4) -> wp.vec3:
-    """surface_normal with the triangle's corners at alpha (a, b, c: entry_vertex's) given."""
+    """surface_normal with the triangle's corners at alpha (a, b, c: entry_corners') given."""
     tri = geo.entry_tri[e]
     m = geo.tri_material[tri]
     wb = hit[2]
@@ -262,22 +269,15 @@ def shade_entry_hit_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: 
                          o: wp.vec3, d: wp.vec3, hit: wp.vec4) -> wp.vec3:
     """Radiance leaving the hit point of entry e (at interpolation alpha, shutter time u), with
     shadows averaged over the shutter span [u - du/2, u + du/2] that the caller stands it for."""
-    vi = geo.tri_vertices[geo.entry_tri[e]]
-    p0 = geo.positions[geo.entry_k0[e], vi[0]]
-    q0 = geo.positions[geo.entry_k0[e], vi[1]]
-    r0 = geo.positions[geo.entry_k0[e], vi[2]]
-    da = geo.positions[geo.entry_k1[e], vi[0]] - p0
-    db = geo.positions[geo.entry_k1[e], vi[1]] - q0
-    dc = geo.positions[geo.entry_k1[e], vi[2]] - r0
-    return shade_corners_span(view, geo, sh, e, alpha, p0 + alpha * da, q0 + alpha * db, r0 + alpha * dc, da, db, dc,
-                              u, du, o, d, hit)
+    a, b, c, da, db, dc = entry_corners(geo, e, geo.tri_vertices[geo.entry_tri[e]], alpha)
+    return shade_corners_span(view, geo, sh, e, alpha, a, b, c, da, db, dc, u, du, o, d, hit)
 
 
 @wp.func
 def shade_corners_span(view: View, geo: Geometry, sh: Shading, e: int, alpha: float, a: wp.vec3, b: wp.vec3,
                        c: wp.vec3, da: wp.vec3, db: wp.vec3, dc: wp.vec3, u: float, du: float, o: wp.vec3,
                        d: wp.vec3, hit: wp.vec4) -> wp.vec3:
-    """shade_entry_hit_span with the triangle's corners at alpha (a, b, c: entry_vertex's) and
+    """shade_entry_hit_span with the triangle's corners at alpha (a, b, c: entry_corners') and
     their changes over the entry's span (da, db, dc) given: the analytic resolve has them already
     (radiance.radiance_at)."""
     tri = geo.entry_tri[e]
