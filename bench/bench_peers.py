@@ -35,7 +35,7 @@ from tqdm import tqdm
 
 sys.path.insert(0, os.path.dirname(__file__))
 from bench_tradeoff import TARGETS, target_verdicts, time_to_error  # noqa: E402
-from common import OUT, ROOT, SCENES, pyplot, table, timed_median  # noqa: E402
+from common import OUT, ROOT, SCENES, pyplot, table, timed_rounds  # noqa: E402
 from peer_variants import emissive_variant  # noqa: E402
 from references import reference  # noqa: E402
 
@@ -100,7 +100,7 @@ def main() -> None:
     peers_dir = os.path.join(OUT, "peers")
     os.makedirs(peers_dir, exist_ok=True)
     rows, summary = [], []
-    bar = tqdm(total=len(chosen) * (2 + sum(len(k) for k in ours.values())), desc="peers", unit="run")
+    bar = tqdm(total=len(chosen) * (2 + sum(len(k) for k in ours.values()) + args.repeats), desc="peers", unit="run")
     for name, frame, res in chosen:
         if args.quick:
             res = (res[0] // 2, res[1] // 2)
@@ -110,15 +110,17 @@ def main() -> None:
         ref = reference(variant, frame, res, ref_n)
         bar.update(1)
         scene_rows = []
-        for method, knobs in ours.items():
-            for knob in knobs:
-                bar.set_postfix_str(f"{name} {method} {knob}")
-                settings = wb.RenderSettings(method=method, aovs=(), **knob)
-                renderer = wb.Renderer(variant, resolution=res, settings=settings)
-                seconds, result = timed_median(lambda: renderer.render(frame), args.repeats)
-                scene_rows.append({"method": method, "knob": json.dumps(knob), "seconds": seconds,
-                                   "rmse": rmse(result.rgba, ref)})
-                bar.update(1)
+        configs = [(method, knob, wb.Renderer(variant, resolution=res,
+                                              settings=wb.RenderSettings(method=method, aovs=(), **knob)))
+                   for method, knobs in ours.items() for knob in knobs]
+        bar.set_postfix_str(f"{name}: {len(configs)} configurations, then {args.repeats} rounds of all")
+        # each round renders every configuration in turn (common.timed_rounds)
+        timed = timed_rounds([lambda r=renderer: r.render(frame) for _m, _k, renderer in configs], args.repeats,
+                             progress=lambda: bar.update(1))
+        for (method, knob, _r), (seconds, result) in zip(configs, timed):
+            scene_rows.append({"method": method, "knob": json.dumps(knob), "seconds": seconds,
+                               "rmse": rmse(result.rgba, ref)})
+        del configs, timed
         bar.set_postfix_str(f"{name} cycles {spp}")
         cyc = cycles_points(python, variant, frame, res, dome, spp, os.path.join(peers_dir, name), ref)
         bar.update(1)

@@ -1,5 +1,6 @@
 """The speed-vs-accuracy trade: every method across its quality knob on the bench scenes, timed
-(median of repeats after a warm-up) and scored against an accumulation reference, in one run.
+(median of rounds after a warm-up; each round renders every configuration of a scene in turn:
+common.timed_rounds) and scored against an accumulation reference, in one run.
 
     python bench/bench_tradeoff.py            # full: 4096-instant references (1024 for large)
     python bench/bench_tradeoff.py --quick    # minutes: smaller images, fewer points
@@ -19,7 +20,7 @@ import sys
 from tqdm import tqdm
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import OUT, SCENES, pyplot, table, timed_median  # noqa: E402
+from common import OUT, SCENES, pyplot, table, timed_rounds  # noqa: E402
 from references import reference  # noqa: E402
 
 import warp_blur as wb  # noqa: E402
@@ -112,8 +113,8 @@ def main() -> None:
     chosen = [s for s in SCENE_LIST if s[0] in args.scenes.split(",")]
     plan = sweeps(args.quick)
     rows: list[dict] = []
-    jobs = [(s, m, k) for s in chosen for m, ks in plan.items() for k in ks]
-    bar = tqdm(total=len(jobs) + len(chosen), desc="tradeoff", unit="run")
+    # per scene: a reference, each configuration's warm-up, then the timed rounds (timed_rounds)
+    bar = tqdm(total=sum(1 + sum(map(len, plan.values())) + repeats for _ in chosen), desc="tradeoff", unit="run")
     for name, frame, res, ref_n in chosen:
         if args.quick:
             res, ref_n = (res[0] // 2, res[1] // 2), min(ref_n, 1024)
@@ -121,20 +122,23 @@ def main() -> None:
         bar.set_postfix_str(f"{name} reference ({ref_n})")
         ref = reference(path, frame, res, ref_n)
         bar.update(1)
+        configs = []
         for method, knobs in plan.items():
             for knob in knobs:
                 if name == "large" and method == "accumulation" and knob["samples"] > 256:
                     bar.update(1)
                     continue  # minutes per frame at 1024x768: the curve is clear by 256
-                bar.set_postfix_str(f"{name} {method} {knob}")
-                renderer = wb.Renderer(path, resolution=res,
-                                       settings=wb.RenderSettings(method=method, aovs=(), **knob))
-                seconds, result = timed_median(lambda: renderer.render(frame), repeats)
-                rows.append({"scene": name, "method": method, "knob": json.dumps(knob), "seconds": seconds,
-                             "rmse": rmse(result.rgba, ref), "psnr": psnr(result.rgba, ref),
-                             "max_abs": max_abs(result.rgba, ref),
-                             "intervals_per_pixel": result.stats.get("intervals_per_pixel_mean", "")})
-                bar.update(1)
+                configs.append((method, knob, wb.Renderer(path, resolution=res,
+                                                          settings=wb.RenderSettings(method=method, aovs=(), **knob))))
+        bar.set_postfix_str(f"{name}: {len(configs)} configurations, then {repeats} rounds of all")
+        timed = timed_rounds([lambda r=renderer: r.render(frame) for _m, _k, renderer in configs], repeats,
+                             progress=lambda: bar.update(1))
+        for (method, knob, _r), (seconds, result) in zip(configs, timed):
+            rows.append({"scene": name, "method": method, "knob": json.dumps(knob), "seconds": seconds,
+                         "rmse": rmse(result.rgba, ref), "psnr": psnr(result.rgba, ref),
+                         "max_abs": max_abs(result.rgba, ref),
+                         "intervals_per_pixel": result.stats.get("intervals_per_pixel_mean", "")})
+        del configs, timed
     bar.close()
     os.makedirs(OUT, exist_ok=True)
     with open(os.path.join(OUT, "tradeoff.csv"), "w", newline="") as f:

@@ -30,6 +30,37 @@ def timed_median(fn: Callable[[], object], repeats: int = 3, long_run_s: float =
     return statistics.median(times), result
 
 
+def timed_rounds(fns: list[Callable[[], object]], repeats: int = 3, long_run_s: float = 20.0,
+                 progress: Callable[[], None] | None = None) -> list[tuple[float, object]]:
+    """[(median wall time, last result)] of each of fns: one warm-up call each, then `repeats`
+    rounds that call every fn in turn, each round starting one further along. On a shared machine
+    whose speed swings from second to second, a burst of load then slows one call of several fns
+    instead of every call of one, so the ratios between fns measured in one run hold (timed_median
+    timed each fn's calls back to back). A fn whose warm-up took longer than `long_run_s` is timed
+    once more only, in the first round (as timed_median). progress() is called after each warm-up
+    and each round."""
+    results: list[object] = [None] * len(fns)
+    warm = [0.0] * len(fns)
+    for i, fn in enumerate(fns):
+        t0 = time.perf_counter()
+        results[i] = fn()
+        warm[i] = time.perf_counter() - t0
+        if progress is not None:
+            progress()
+    times: list[list[float]] = [[] for _ in fns]
+    for r in range(repeats):
+        for j in range(len(fns)):
+            i = (j + r) % len(fns)
+            if warm[i] > long_run_s and times[i]:
+                continue
+            t0 = time.perf_counter()
+            results[i] = fns[i]()
+            times[i].append(time.perf_counter() - t0)
+        if progress is not None:
+            progress()
+    return [(statistics.median(t) if t else warm[i], results[i]) for i, t in enumerate(times)]
+
+
 def table(rows: list[dict], columns: list[str]) -> str:
     """Plain-text table of rows (dicts) with the given columns."""
     def fmt(v):
