@@ -334,15 +334,16 @@ def test_room_set_by_a_pilot_gives_the_same_image(scene_path, monkeypatch):
 
 
 def test_segment_junctions_take_the_radiance_already_shaded(monkeypatch):
-    """Demo's spinning cube moves in 8 segments and its ground (seen from a moving camera) in 2,
-    each a separate entry: an interval that meets the one shaded before it at a junction of the
+    """Demo's spinning cube moves in 8 segments at final's motion bound (0.25 px / 0.001) and its
+    ground (seen from a moving camera) in 2, each a separate entry: an interval that meets the one shaded before it at a junction of the
     same triangle takes that interval's radiance there instead of shading the same point at the
     same time again. Only a shadow lookup's velocity (each segment's own) separates the two, so
     the image must stay within 1e-4 of shading every end (a reuse of the wrong end moves pixels
     by ~8e-3), and the count must say the ends were taken."""
     import warp_blur.methods.analytic as analytic
     monkeypatch.setattr(analytic, "SHARED_EDGES", False)   # junctions only (shared edges: the next test)
-    kw = dict(frame=12.0, resolution=(128, 96), method="analytic", aovs=())
+    kw = dict(frame=12.0, resolution=(128, 96), method="analytic", aovs=(), segment_error_px=0.25,
+              segment_time_error=0.001)
     path = os.path.join(SCENES, "demo.usda")
     reused = wb.render(path, **kw)
     monkeypatch.setattr(analytic, "SEGMENT_JUNCTIONS", False)
@@ -470,6 +471,37 @@ def test_quality_presets_trade_motion_segments_for_speed(scene_path):
     assert explicit.resolved_segment_error_px == 0.25 and explicit.resolved_segment_time_error == 0.001
     with pytest.raises(wb.SettingsError):
         RenderSettings(method="analytic", segment_error_px=0.0)
+
+
+def test_default_motion_bound_sits_between_preview_and_final(scene_path):
+    """Without a preset analytic linearises motion to 0.5 px / 0.002 of the path (session 67; final
+    keeps 0.25 / 0.001): on a blade turning half a circle no more prisms than final and no fewer
+    than preview, its achieved error within the bound, and where the SPEC's 128 time bits set the
+    error the coarser motion costs little: RMSE against accumulation at 1024 instants within 1.2x
+    of the same 128 bits at final's motion bound (1.14x measured; the 3 px bound's 8 segments
+    1.27x)."""
+    from authoring import add_camera, add_material, add_quad, new_stage
+    from warp_blur.core.settings import RenderSettings
+    path = scene_path()
+    stage = new_stage(path)
+    add_camera(stage)
+    mat = add_material(stage, "/World/Looks/E", emissive=(0.9, 0.6, 0.2))
+    add_quad(stage, "/World/Blade", 3.0, 0.4, material=mat, rotate_axis="Z", rotate_samples={0.5: 0.0, 1.5: 180.0})
+    stage.GetRootLayer().Save()
+    kw = dict(frame=1, resolution=(64, 48), method="analytic", aovs=())
+    default = wb.render(path, **kw)
+    fine = wb.render(path, segment_error_px=0.25, segment_time_error=0.001, **kw)
+    preview = wb.render(path, quality="preview", **kw)
+    final = wb.render(path, quality="final", **kw)
+    assert preview.stats["entries"] <= default.stats["entries"] < fine.stats["entries"] == final.stats["entries"]
+    assert default.stats["motion_segment_error_px"] <= 0.5
+    ref = wb.render(path, frame=1, resolution=(64, 48), samples=1024, aovs=(), shadows="off")
+    assert rmse(default.rgba, ref.rgba) <= 1.2 * rmse(fine.rgba, ref.rgba)
+    for method in ("analytic", "stochastic"):
+        assert RenderSettings(method=method).resolved_segment_error_px == 0.5
+        assert RenderSettings(method=method).resolved_segment_time_error == 0.002
+    assert RenderSettings(method="analytic", quality="final").resolved_segment_error_px == 0.25
+    assert RenderSettings(method="analytic", quality="final").resolved_segment_time_error == 0.001
 
 
 def test_short_span_follows_the_shading_cap():
