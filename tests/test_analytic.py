@@ -475,7 +475,7 @@ def test_quality_presets_trade_motion_segments_for_speed(scene_path):
 
 def test_default_motion_bound_sits_between_preview_and_final(scene_path):
     """Without a preset analytic linearises motion to 0.5 px / 0.002 of the path (session 67; final
-    keeps 0.25 / 0.001): on a blade turning half a circle no more prisms than final and no fewer
+    and the exact spans of time_bits 0 keep 0.25 / 0.001): on a blade turning half a circle no more prisms than final and no fewer
     than preview, its achieved error within the bound, and where the SPEC's 128 time bits set the
     error the coarser motion costs little: RMSE against accumulation at 1024 instants within 1.2x
     of the same 128 bits at final's motion bound (1.14x measured; the 3 px bound's 8 segments
@@ -500,8 +500,11 @@ def test_default_motion_bound_sits_between_preview_and_final(scene_path):
     for method in ("analytic", "stochastic"):
         assert RenderSettings(method=method).resolved_segment_error_px == 0.5
         assert RenderSettings(method=method).resolved_segment_time_error == 0.002
-    assert RenderSettings(method="analytic", quality="final").resolved_segment_error_px == 0.25
-    assert RenderSettings(method="analytic", quality="final").resolved_segment_time_error == 0.001
+    for fine in (RenderSettings(method="analytic", quality="final"), RenderSettings(method="analytic", time_bits=0)):
+        assert (fine.resolved_segment_error_px, fine.resolved_segment_time_error) == (0.25, 0.001)
+    exact = wb.render(path, time_bits=0, **kw)
+    assert exact.stats["entries"] == final.stats["entries"]
+    assert rmse(exact.rgba, ref.rgba) < rmse(final.rgba, ref.rgba)
 
 
 def test_short_span_follows_the_shading_cap():
