@@ -443,20 +443,26 @@ def test_static_pixels_resolved_in_count_pass_match_stored_resolve(scene_path, m
     assert max_abs(direct.rgba, stored.rgba) < 1e-4
 
 
+def half_turn_blade(path: str) -> str:
+    """An emissive blade 3 × 0.4 turning half a circle about the view axis over frame 1's shutter,
+    written to path (the motion-segment tests' stage)."""
+    from authoring import add_camera, add_material, add_quad, new_stage
+    stage = new_stage(path)
+    add_camera(stage)
+    mat = add_material(stage, "/World/Looks/E", emissive=(0.9, 0.6, 0.2))
+    add_quad(stage, "/World/Blade", 3.0, 0.4, material=mat, rotate_axis="Z", rotate_samples={0.5: 0.0, 1.5: 180.0})
+    stage.GetRootLayer().Save()
+    return path
+
+
 def test_quality_presets_trade_motion_segments_for_speed(scene_path):
     """analytic's draft linearises motion more coarsely than final (fewer prisms: the knob buys
     time, issue 18), its achieved screen error stays within the preset's bound, and an explicit
     segment_error_px wins over the preset. Preview sits between them: no more prisms than final
     has, and against accumulation at 1024 instants draft > preview > final in RMSE (preview's
     512 bits against the draft's 256; 0.00082 / 0.00065 / 0.00047 here)."""
-    from authoring import add_camera, add_material, add_quad, new_stage
     from warp_blur.core.settings import QUALITY_PRESETS, RenderSettings
-    path = scene_path()
-    stage = new_stage(path)
-    add_camera(stage)
-    mat = add_material(stage, "/World/Looks/E", emissive=(0.9, 0.6, 0.2))
-    add_quad(stage, "/World/Blade", 3.0, 0.4, material=mat, rotate_axis="Z", rotate_samples={0.5: 0.0, 1.5: 180.0})
-    stage.GetRootLayer().Save()
+    path = half_turn_blade(scene_path())
     kw = dict(frame=1, resolution=(64, 48), method="analytic", aovs=())
     draft = wb.render(path, quality="draft", **kw)
     preview = wb.render(path, quality="preview", **kw)
@@ -475,19 +481,13 @@ def test_quality_presets_trade_motion_segments_for_speed(scene_path):
 
 def test_default_motion_bound_sits_between_preview_and_final(scene_path):
     """Without a preset analytic linearises motion to 0.5 px / 0.002 of the path (session 67; final
-    and the exact spans of time_bits 0 keep 0.25 / 0.001): on a blade turning half a circle no more prisms than final and no fewer
-    than preview, its achieved error within the bound, and where the SPEC's 128 time bits set the
-    error the coarser motion costs little: RMSE against accumulation at 1024 instants within 1.2x
+    and the exact spans of time_bits 0 keep 0.25 / 0.001): on a blade turning half a circle no
+    more prisms than final and no fewer than preview, its achieved error within the bound, and
+    where the SPEC's 128 time bits set the error the coarser motion costs little: RMSE against accumulation at 1024 instants within 1.2x
     of the same 128 bits at final's motion bound (1.14x measured; the 3 px bound's 8 segments
     1.27x)."""
-    from authoring import add_camera, add_material, add_quad, new_stage
     from warp_blur.core.settings import RenderSettings
-    path = scene_path()
-    stage = new_stage(path)
-    add_camera(stage)
-    mat = add_material(stage, "/World/Looks/E", emissive=(0.9, 0.6, 0.2))
-    add_quad(stage, "/World/Blade", 3.0, 0.4, material=mat, rotate_axis="Z", rotate_samples={0.5: 0.0, 1.5: 180.0})
-    stage.GetRootLayer().Save()
+    path = half_turn_blade(scene_path())
     kw = dict(frame=1, resolution=(64, 48), method="analytic", aovs=())
     default = wb.render(path, **kw)
     fine = wb.render(path, segment_error_px=0.25, segment_time_error=0.001, **kw)
