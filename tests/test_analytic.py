@@ -502,6 +502,9 @@ def test_default_motion_bound_sits_between_preview_and_final(scene_path):
         assert RenderSettings(method=method).resolved_segment_time_error == 0.002
     for fine in (RenderSettings(method="analytic", quality="final"), RenderSettings(method="analytic", time_bits=0)):
         assert (fine.resolved_segment_error_px, fine.resolved_segment_time_error) == (0.25, 0.001)
+    described = [RenderSettings(method="analytic", **k).describe() for k in ({}, {"time_bits": 0})]
+    assert [(d["segment_error_px"], d["segment_time_error"]) for d in described] == [(0.5, 0.002), (0.25, 0.001)]
+    assert default.metadata["settings"]["segment_error_px"] == 0.5   # the EXR header's warp_blur.settings
     exact = wb.render(path, time_bits=0, **kw)
     assert exact.stats["entries"] == final.stats["entries"]
     assert rmse(exact.rgba, ref.rgba) < rmse(final.rgba, ref.rgba)

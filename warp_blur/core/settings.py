@@ -286,6 +286,11 @@ class RenderSettings:
                      shadow_times=self.shadow_times, shadow_keys=self.shadow_keys,
                      light_samples=self.resolved_light_samples, shadow_bias=self.shadow_bias,
                      shadow_normal_bias=self.shadow_normal_bias, shadow_pcf=self.shadow_pcf)
+        if self.method in ("analytic", "stochastic"):
+            # the bound the motion plan used (a default that changes between versions changes the
+            # fingerprint: --resume renders such a frame again)
+            d.update(segment_error_px=self.resolved_segment_error_px,
+                     segment_time_error=self.resolved_segment_time_error)
         if self.method == "analytic":
             d["time_bits"] = self.resolved_time_bits
         if self.method == "stochastic":
