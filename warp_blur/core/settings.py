@@ -17,9 +17,10 @@ DEFAULT_TIME_BITS = 128
 #: motion segments without a preset (analytic's default, stochastic at every preset): 0.5 px /
 #: 0.002 of the path since session 67 (0.25 / 0.001 before, analytic's final keeps it). Chords
 #: straddle a curving path since session 64 (chords.py), so they stray from it about as far as
-#: the tighter bound's did: analytic's default on deep_overlap 20-25% faster at RMSE 0.00078
-#: against 0.00076, stochastic-64 15% faster at 0.002053 against 0.002046; rotation, demo and the
-#: straight-line bench scenes keep their segments (bench_tradeoff, docs/benchmarks.md)
+#: the tighter bound's did: analytic's default on deep_overlap 17-25% faster at RMSE 0.00078
+#: against 0.00076, stochastic-64 15% faster at 0.002053 against 0.002046; demo's cube 4 segments
+#: for 8 (RMSE 0.000473 against 0.000472); rotation and the straight-line bench scenes keep
+#: theirs (bench_tradeoff, docs/benchmarks.md)
 DEFAULT_SEGMENT_ERROR_PX = 0.5
 DEFAULT_SEGMENT_TIME_ERROR = 0.002
 #: the finer bound: analytic's final preset, and its exact spans (time_bits 0) without a preset,
