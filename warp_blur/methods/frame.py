@@ -83,6 +83,7 @@ class FrameContext:
     instant_flags: bool = False
     probe_snapshots: dict = field(default_factory=dict)   # shutter fraction -> Snapshot (static_frame's)
     instants: int = 1   # sharp instants this frame will shade (accumulation sets it)
+    instant_knots: list | None = None   # snapshots of every scene its instants shade: knots for ShadowMaps
 
     def release(self) -> None:
         """Drop the frame's caches (shadow maps, the last Shading and geometry, snapshots) once
@@ -97,6 +98,7 @@ class FrameContext:
         self._velocities = None
         self.neighbour = None
         self.probe_snapshots = {}
+        self.instant_knots = None
 
     @contextmanager
     def timed(self, stage: str):
@@ -199,10 +201,9 @@ class FrameContext:
         With a motion plan's knots (sample_at linear between them), lights that can darken nothing lit get none."""
         if not self.may_cast_shadows():
             return None
-        scene = self.scene
-        sm = ShadowMaps(self.tables, scene.tri_vertices, scene.tri_object, sample_at,
-                        self.shadow_options(), self.device, self.settings.threads, self.timings, self.counters,
-                        scene.tri_closed, knots, pair_receivers(scene) if knots is not None else None)
+        sm = ShadowMaps(self.tables, self.scene.tri_vertices, self.scene.tri_object, sample_at, self.shadow_options(),
+                        self.device, self.settings.threads, self.timings, self.counters, self.scene.tri_closed,
+                        knots, pair_receivers(self.scene) if knots is not None else None)
         return sm if sm.active else None
 
     def snapshot_fraction(self, snapshot: Snapshot) -> float:
@@ -217,12 +218,11 @@ class FrameContext:
 
     def instant_shadow_maps(self) -> ShadowMaps | None:
         """The shadow maps the frame's sharp instants shade with (made on first use; None when no
-        light can cast a visible shadow)."""
+        light can cast a visible shadow, or, with instant_knots, none can darken anything lit)."""
         if self._instant_shadows is None:
-            def sample_at(u: float) -> Sample:
-                snap = self.scene.snapshot(self.shutter.time(u), with_normals=False)
-                return Sample(snap.positions, snap.tri_visible, snap.lights)
-            self._instant_shadows = self.shadow_maps(sample_at) or False
+            knots = [Sample.of(k) for k in self.instant_knots or []] or None
+            self._instant_shadows = self.shadow_maps(
+                lambda u: Sample.of(self.scene.snapshot(self.shutter.time(u), with_normals=False)), knots) or False
         return self._instant_shadows or None
 
     def shading(self, snapshots: list[Snapshot]):

@@ -222,6 +222,11 @@ def render_velocity(ctx: FrameContext) -> np.ndarray:
     # thread beside the geometry and binning below, as analytic's and stochastic's maps are; in
     # turn when no light casts a shadow or one core is asked for
     shading_job = None
+    # the method sees the scene at open, centre and close only (the maps at the centre, extruded
+    # trails at open or close): those three bound every point a lookup or a map reads, so a light
+    # whose shadows fall on nothing lit there gets no maps (shadows/pairs.py; a moving camera
+    # moves the light in camera space between them, which keeps its maps)
+    ctx.instant_knots = snaps
     if s.spatial_samples == 1 and ctx.may_cast_shadows() and (s.threads or default_threads()) > 1:
         _ = ctx.tables   # made here, not raced for by the helper and the geometry below
         shading_job = Background(lambda: ctx.shading([center]), "shadows")

@@ -50,6 +50,11 @@ class Sample:
     tri_visible: np.ndarray
     lights: np.ndarray
 
+    @classmethod
+    def of(cls, snapshot) -> "Sample":
+        """The Sample of a usd.scene.Snapshot (its positions, visibility and lights)."""
+        return cls(snapshot.positions, snapshot.tri_visible, snapshot.lights)
+
 
 @dataclass
 class Face:
