@@ -198,7 +198,7 @@ class FrameContext:
     def shadow_maps(self, sample_at, knots: list[Sample] | None = None) -> ShadowMaps | None:
         """Shadow maps over this frame's shutter, the scene at shutter time u given by
         sample_at(u) -> Sample; None when no light can cast a visible shadow (no time spent).
-        With a motion plan's knots (sample_at linear between them), lights that can darken nothing lit get none."""
+        With knots bounding all it reads (a plan's, velocity's instants), lights that darken nothing lit get none."""
         if not self.may_cast_shadows():
             return None
         sm = ShadowMaps(self.tables, self.scene.tri_vertices, self.scene.tri_object, sample_at, self.shadow_options(),
