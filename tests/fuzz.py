@@ -186,6 +186,9 @@ if __name__ == "__main__":
     ap.add_argument("--skip-invalid", action="store_true", help="render with --skip-invalid (invalid prims dropped)")
     ap.add_argument("--stage", action="append", help=".usda files to mutate instead of the shipped stages")
     a = ap.parse_args()
+    missing = [p for p in a.stage or [] if not os.path.isfile(p)]
+    if missing:
+        ap.error(f"--stage {missing[0]}: no such file (one .usda per --stage)")
     result = soak(a.many, a.seed, a.timeout, a.start, a.skip_invalid, a.stage)
     for verdict, n in result.most_common():
         print(f"{n:6d}  {verdict}")
