@@ -1,5 +1,7 @@
-"""Blender Cycles as a peer: time vs error of Cycles (CPU, motion blur) beside warp_blur's methods,
-in one run, against the same accumulation reference.
+"""Blender Cycles as a peer: time vs error of Cycles (CPU, motion blur) beside warp_blur's four
+methods, in one run, against the same accumulation reference. Issue 18's targets are analytic's
+leads over stochastic, accumulation and Cycles; velocity (an approximation, whose error stays
+near its one sharp instant's) is timed and plotted beside them without a target.
 
     python bench/bench_peers.py --python /path/to/venv-with-bpy/bin/python   # pip install 'bpy==4.5.*'
     python bench/bench_peers.py --quick                                      # smaller images, fewer points
@@ -34,7 +36,7 @@ import sys
 from tqdm import tqdm
 
 sys.path.insert(0, os.path.dirname(__file__))
-from bench_tradeoff import TARGETS, target_verdicts, time_to_error  # noqa: E402
+from bench_tradeoff import SPEEDUP_TARGETS, TARGETS, target_verdicts, time_to_error  # noqa: E402
 from common import OUT, ROOT, SCENES, pyplot, table, timed_rounds  # noqa: E402
 from peer_variants import emissive_variant  # noqa: E402
 from references import reference  # noqa: E402
@@ -47,6 +49,39 @@ from warp_blur.output.metrics import rmse  # noqa: E402
 
 SCENE_LIST = [("deep_overlap", 2, (512, 384)), ("rotation", 2, (640, 480)), ("large", 2, (1024, 768))]
 MISMATCH_RMSE = 0.01
+#: the curves of a scene, in the tables' and the plot's order
+CURVES = ("analytic", "stochastic", "accumulation", "velocity", "cycles")
+
+
+def ours_sweeps(quick: bool) -> dict[str, list[dict]]:
+    """warp_blur's configurations per method: analytic's cheapest point (the draft at 32 time
+    bits, as in bench_tradeoff's sweep), its presets and exact mode; the others' sample counts."""
+    return {"analytic": [{"quality": "draft", "time_bits": 32}]
+            + [{"quality": q} for q in ("draft", "preview", "final")] + [{"time_bits": 0}],
+            "stochastic": [{"samples": n} for n in (16, 64, 256)],
+            "accumulation": [{"samples": n} for n in (16, 64, 256)],
+            "velocity": [{"samples": n} for n in ((4, 8, 16) if quick else (4, 8, 16, 32))]}
+
+
+def scene_summary(name: str, scene_rows: list[dict]) -> list[dict]:
+    """Per target RMSE: each curve's time to reach it (t_<method>), analytic's lead over each
+    other curve (x_<method>) and issue 18's verdicts on the rivals it names (SPEEDUP_TARGETS:
+    stochastic, accumulation, Cycles). Cycles rows noted as a conversion mismatch are left out."""
+    curves = {m: [(r["seconds"], r["rmse"]) for r in scene_rows
+                  if r["method"] == m and r.get("note") != "conversion mismatch"] for m in CURVES}
+    curves = {m: pts for m, pts in curves.items() if pts}
+    out = []
+    for target in TARGETS:
+        entry = {"scene": name, "target_rmse": target}
+        for m, pts in curves.items():
+            entry[f"t_{m}"] = time_to_error(pts, target)
+        t_a = entry.get("t_analytic", math.inf)
+        for m in curves:
+            if m != "analytic":
+                entry[f"x_{m}"] = entry[f"t_{m}"] / t_a if t_a < math.inf else math.nan
+        entry["targets"] = target_verdicts(entry, [m for m in curves if m in SPEEDUP_TARGETS])
+        out.append(entry)
+    return out
 
 
 def bpy_python(explicit: str | None) -> str | None:
@@ -90,11 +125,7 @@ def main() -> None:
               "venv and pass --python that/venv/bin/python)")
         return
     chosen = [s for s in SCENE_LIST if s[0] in args.scenes.split(",")]
-    # analytic's cheapest point, the draft at 32 time bits, as in bench_tradeoff's sweep
-    ours = {"analytic": [{"quality": "draft", "time_bits": 32}]
-            + [{"quality": q} for q in ("draft", "preview", "final")] + [{"time_bits": 0}],
-            "stochastic": [{"samples": n} for n in (16, 64, 256)],
-            "accumulation": [{"samples": n} for n in (16, 64, 256)]}
+    ours = ours_sweeps(args.quick)
     spp = [16, 64, 256] if args.quick else [16, 64, 256, 1024]
     ref_n = args.ref_samples or (1024 if args.quick else 4096)
     peers_dir = os.path.join(OUT, "peers")
@@ -131,28 +162,15 @@ def main() -> None:
         for r in scene_rows:
             r["scene"] = name
         rows += scene_rows
-        curves = {m: [(r["seconds"], r["rmse"]) for r in scene_rows if r["method"] == m]
-                  for m in ("analytic", "stochastic", "accumulation", "cycles")}
-        if mismatch:
-            curves.pop("cycles")
-        for target in TARGETS:
-            entry = {"scene": name, "target_rmse": target}
-            for m, pts in curves.items():
-                entry[f"t_{m}"] = time_to_error(pts, target)
-            t_a = entry["t_analytic"]
-            rivals = [m for m in curves if m != "analytic"]
-            for m in rivals:
-                entry[f"x_{m}"] = entry[f"t_{m}"] / t_a if t_a < math.inf else math.nan
-            entry["targets"] = target_verdicts(entry, rivals)
-            summary.append(entry)
+        summary += scene_summary(name, scene_rows)
     bar.close()
     with open(os.path.join(OUT, "peers.json"), "w") as f:
         json.dump({"runs": rows, "time_to_error": summary, "quick": args.quick, "python": python}, f,
                   indent=2, default=str)
     print(table(rows, ["scene", "method", "knob", "seconds", "rmse", "note"]))
     print()
-    cols = ["scene", "target_rmse"] + [f"t_{m}" for m in ("analytic", "stochastic", "accumulation", "cycles")]
-    cols += [f"x_{m}" for m in ("stochastic", "accumulation", "cycles")] + ["targets"]
+    cols = ["scene", "target_rmse"] + [f"t_{m}" for m in CURVES]
+    cols += [f"x_{m}" for m in CURVES if m != "analytic"] + ["targets"]
     print(table(summary, cols))
     _plot(rows, [c[0] for c in chosen], os.path.join(OUT, "peers.png"))
     print("wrote", os.path.join(OUT, "peers.json"), "peers.png")
@@ -164,7 +182,7 @@ def _plot(rows: list[dict], scenes: list[str], path: str) -> None:
         return
     fig, axes = plt.subplots(1, len(scenes), figsize=(4.4 * len(scenes), 3.8), squeeze=False)
     for ax, name in zip(axes[0], scenes):
-        for m in ("analytic", "stochastic", "accumulation", "cycles"):
+        for m in CURVES:
             pts = sorted((r["seconds"], r["rmse"]) for r in rows if r["scene"] == name and r["method"] == m)
             if pts:
                 ax.loglog(*zip(*pts), marker="o", label=m)
