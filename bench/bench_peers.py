@@ -87,8 +87,11 @@ def scene_summary(name: str, scene_rows: list[dict]) -> list[dict]:
 def bpy_python(explicit: str | None) -> str | None:
     """A Python that can import bpy (explicit, $WARP_BLUR_BPY_PYTHON, or this one), else None."""
     for cand in (explicit, os.environ.get("WARP_BLUR_BPY_PYTHON"), sys.executable):
-        if cand and subprocess.run([cand, "-c", "import bpy"], capture_output=True).returncode == 0:
-            return cand
+        try:
+            if cand and subprocess.run([cand, "-c", "import bpy"], capture_output=True).returncode == 0:
+                return cand
+        except OSError:   # not an executable (a mistyped --python): try the next
+            continue
     return None
 
 
@@ -116,7 +119,8 @@ def main() -> None:
     ap.add_argument("--python", help="a Python with bpy installed (else $WARP_BLUR_BPY_PYTHON, else this one)")
     ap.add_argument("--scenes", default=",".join(s[0] for s in SCENE_LIST))
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--repeats", type=int, help="timed rounds of every configuration (3; 1 with --quick), as "
+                    "bench_tradeoff.py")
     ap.add_argument("--ref-samples", type=int, help="reference instants (default 4096; 1024 with --quick)")
     args = ap.parse_args()
     python = bpy_python(args.python)
@@ -125,6 +129,7 @@ def main() -> None:
               "venv and pass --python that/venv/bin/python)")
         return
     chosen = [s for s in SCENE_LIST if s[0] in args.scenes.split(",")]
+    args.repeats = args.repeats or (1 if args.quick else 3)
     ours = ours_sweeps(args.quick)
     spp = [16, 64, 256] if args.quick else [16, 64, 256, 1024]
     ref_n = args.ref_samples or (1024 if args.quick else 4096)

@@ -54,3 +54,8 @@ def test_without_bpy_the_bench_says_so_and_returns(monkeypatch, capsys):
     monkeypatch.setattr(sys, "argv", ["bench_peers.py"])
     bench_peers.main()
     assert "skipped" in capsys.readouterr().out
+
+
+def test_a_python_that_is_not_there_counts_as_no_bpy(monkeypatch):
+    monkeypatch.delenv("WARP_BLUR_BPY_PYTHON", raising=False)
+    assert bench_peers.bpy_python(os.path.join(ROOT, "no", "such", "python")) in (None, sys.executable)
