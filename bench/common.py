@@ -17,17 +17,9 @@ def timed_median(fn: Callable[[], object], repeats: int = 3, long_run_s: float =
     """Median wall time of `repeats` calls after one warm-up call; returns (seconds, last result).
 
     A warm-up slower than `long_run_s` is timed once more only (long runs are not noisy enough
-    to need a median, and repeating them would take the benchmark past its budget)."""
-    t0 = time.perf_counter()
-    result = fn()
-    if time.perf_counter() - t0 > long_run_s:
-        repeats = 1
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        result = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), result
+    to need a median, and repeating them would take the benchmark past its budget). One fn's
+    timed_rounds."""
+    return timed_rounds([fn], repeats, long_run_s)[0]
 
 
 def timed_rounds(fns: list[Callable[[], object]], repeats: int = 3, long_run_s: float = 20.0,
@@ -35,10 +27,10 @@ def timed_rounds(fns: list[Callable[[], object]], repeats: int = 3, long_run_s: 
     """[(median wall time, last result)] of each of fns: one warm-up call each, then `repeats`
     rounds that call every fn in turn, each round starting one further along. On a shared machine
     whose speed swings from second to second, a burst of load then slows one call of several fns
-    instead of every call of one, so the ratios between fns measured in one run hold (timed_median
-    timed each fn's calls back to back). A fn whose warm-up took longer than `long_run_s` is timed
-    once more only, in the first round (as timed_median). progress() is called after each warm-up
-    and each round."""
+    instead of every call of one, so the ratios between fns measured in one run hold (timing each
+    fn's calls back to back, as timed_median of one fn does, would not). A fn whose warm-up took
+    longer than `long_run_s` is timed once more only, in the first round. progress() is called
+    after each warm-up and each round."""
     results: list[object] = [None] * len(fns)
     warm = [0.0] * len(fns)
     for i, fn in enumerate(fns):

@@ -63,3 +63,14 @@ def test_a_long_warm_up_is_timed_once(monkeypatch):
 def test_no_rounds_report_the_warm_up():
     out = timed_rounds([lambda: 7], repeats=0)
     assert out[0][1] == 7 and out[0][0] >= 0.0
+
+
+def test_timed_median_is_one_configurations_rounds(monkeypatch):
+    clock = FakeClock()
+    monkeypatch.setattr(common.time, "perf_counter", clock.perf_counter)
+    steps = iter([1.0, 3.0, 1.0, 2.0])   # warm-up, then three timed calls
+
+    def run():
+        clock.now += next(steps)
+        return clock.now
+    assert common.timed_median(run, repeats=3) == (2.0, 7.0)
