@@ -192,7 +192,7 @@ class Renderer:
         metadata = {
             "camera": str(self.camera.GetPath()), "shutter": [shutter.open, shutter.close],
             "frame": frame, "scene": os.path.abspath(self.scene_path), "warp_blur_version": __version__,
-            "settings": s.describe(), "render_time_s": round(total, 4),
+            "settings": s.describe(), "render_time_s": round(total, 4), "error_estimate": stats["error_estimate"],
             "motion_convention": "motion.X/motion.Y: screen displacement in pixels of the surface seen at the "
                                  "shutter centre, from shutter open to close; x right, y down; 0 where nothing is seen",
         }
@@ -207,6 +207,8 @@ class Renderer:
         h, w = proj.height, proj.width
         wants_aovs = shutter.exposed and ("Z" in s.aovs or "motion" in s.aovs)
         aov_job = None
+        # the frame minus its half-sampled frame (methods/halves.py): 0 where every instant is alike
+        ctx.counters["error_estimate"] = 0.0
         if not shutter.exposed:
             rgba = np.zeros((h, w, 4), np.float32)
         else:
@@ -224,6 +226,7 @@ class Renderer:
                     _ = ctx.tables   # made here, not raced for by the helper and the method
                     aov_job = Background(lambda: depth_motion(ctx, snapshots), "aovs")
                 try:
+                    ctx.counters["error_estimate"] = None   # the method's own, if it has one
                     rgba = get_method(s.method)(ctx).reshape(h, w, 4).astype(np.float32)
                 except BaseException:
                     if aov_job is not None:

@@ -323,14 +323,16 @@ def render_over_recorded_instants(view: View, geo: Geometry, sh: Shading, bins: 
                                   rec_color: wp.array2d(dtype=wp.vec3),
                                   # scratch (row k: INSTANT_CACHE_SLOTS per sub-sample) and output
                                   cache_e: wp.array2d(dtype=int), cache_color: wp.array2d(dtype=wp.vec3),
-                                  rgba: wp.array2d(dtype=float)):
+                                  rgba: wp.array2d(dtype=float), rgba_odd: wp.array2d(dtype=float)):
     """render_over_recorded at every instant us[i] in turn, in one launch, for a frame where
     nothing moves and shading is steady (lights, shadows and dome the same at every instant) and
     the changing triangles change only in presence (fractional opacity): a sub-sample's hit on a
     triangle is then the same point, with the same radiance, at every instant, so it is shaded once
     and remembered (INSTANT_CACHE_SLOTS per sub-sample; a surface beyond them is shaded again).
     The recorded surface shows its recorded radiance (recorded with shade = 1). Each instant adds
-    weight × its colour as render_over_recorded's pass at that instant would, in the same order."""
+    weight × its colour as render_over_recorded's pass at that instant would, in the same order:
+    the even-indexed instants into rgba, the odd into rgba_odd (the accumulation's two half sums;
+    the same array as rgba for one sum)."""
     k = first + wp.tid()
     pix, px, py, tile = listed_pixel(view, pixels, k)
     n = view.spatial
@@ -369,7 +371,10 @@ def render_over_recorded_instants(view: View, geo: Geometry, sh: Shading, bins: 
                     cover = cover + 1.0
                 else:
                     color = color + dome_at(sh, d, u)
-        add_pixel(rgba, pix, weight / float(n * n), color, cover)
+        if i % 2 == 0:
+            add_pixel(rgba, pix, weight / float(n * n), color, cover)
+        else:
+            add_pixel(rgba_odd, pix, weight / float(n * n), color, cover)
 
 
 @wp.func

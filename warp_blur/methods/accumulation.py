@@ -20,13 +20,13 @@ from dataclasses import dataclass
 from typing import Callable, Iterator
 
 import numpy as np
-import warp as wp
 
 from ..core.parallel import run_prepared
 from ..core.rows import all_corners, same_rows
 from ..kernels.raster import INSTANT_CACHE_SLOTS
 from ..raster.binning import SAMPLE_MARGIN_PX, TILE_SIZE, entry_pixel_bounds, tile_mask_pixels
 from .frame import FrameContext
+from .halves import InstantHalves
 
 #: tests switch this off to compare against rendering every pixel at every instant
 STATIC_TILES = True
@@ -154,7 +154,7 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
     n = ctx.settings.resolved_samples
     if ctx.shutter.instant and not ctx.scene.any_fractional:
         n = 1  # every instant is the same one (fractional opacity still samples presence per instant)
-    rgba = wp.zeros((ctx.num_pixels, 4), dtype=float, device=ctx.device)
+    halves = InstantHalves(ctx.num_pixels, n, ctx.device)
     ctx.instants = n
     us = instants(n)
     plan = moving_tile_pixels(ctx, us) if (STATIC_TILES and n > 1) else None
@@ -180,30 +180,38 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
     # still surfaces under still lights whose shadows move: the maps' varying-texel flags tell
     # which of their pixels never change (built only then: they cost tens of ms of NumPy)
     ctx.instant_flags = plan is not None and STEADY_PIXELS and plan.lights_still and not plan.steady
-    run_prepared(_passes(ctx, us, plan, split, split and one_pass, rgba, recorded))
-    done = [h.done for h in recorded if h is not None and h.done is not None]
+    run_prepared(_passes(ctx, us, plan, split, split and one_pass, halves, recorded))
+    exact = None   # pixels added at full weight: the same at every instant
+    if plan is not None and plan.steady:
+        exact = np.setdiff1d(np.arange(ctx.num_pixels), plan.pixels)
+    done = [h for h in recorded if h is not None and h.done is not None]
     if done:   # the still pixels found to look the same at every instant, shaded once
-        ctx.counters["accumulation_steady_pixels"] = float(done[0].numpy().mean())
+        flags = done[0].done.numpy()
+        ctx.counters["accumulation_steady_pixels"] = float(flags.mean())
+        exact = done[0].pixels.numpy()[flags != 0]
     if plan is not None:
         ctx.counters["accumulation_still_pixels"] = 1.0 - len(plan.pixels) / ctx.num_pixels
         ctx.counters["accumulation_still_shading"] = "once" if plan.steady else "per instant"
         ctx.counters["accumulation_moving_tiles"] = "changing triangles" if split else "every triangle"
     ctx.counters["instants"] = n
-    return rgba.numpy()
+    # one instant for a shutter of one instant: no time to sample, no error to estimate
+    ctx.counters["error_estimate"] = 0.0 if ctx.shutter.instant and n == 1 else halves.estimate(exact)
+    return halves.image()
 
 
 def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None, split: bool, one_pass: bool,
-            rgba: wp.array, recorded: list) -> Iterator[Callable[[], None]]:
+            halves: InstantHalves, recorded: list) -> Iterator[Callable[[], None]]:
     """The frame's passes in order, each prepared when asked for (frame.prepare_sharp_pass): with
     a plan, still tiles once (steady) or found once and reshaded per instant, and the moving
     tiles at every instant (with split, the still triangles there found once, and only the
     changing ones rasterised per instant); without one, every pixel at every instant. The still
     tiles' recorded hits are appended to `recorded`. With one_pass (split, nothing moves, steady
-    shading) the moving tiles' instants are one pass after the record pass."""
+    shading) the moving tiles' instants are one pass after the record pass. Instant i's passes add
+    into halves.target(i); the passes at full weight into halves.even."""
     n = len(us)
     if plan is None:
-        for snap in _snapshots(ctx, us):
-            run, _ = ctx.prepare_sharp_pass(snap, 1.0 / n, rgba)
+        for i, snap in enumerate(_snapshots(ctx, us)):
+            run, _ = ctx.prepare_sharp_pass(snap, 1.0 / n, halves.target(i))
             if run is not None:
                 yield run
         return
@@ -214,8 +222,9 @@ def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None, split: 
     behind = None
     for i, snap in enumerate(_snapshots(ctx, us)):
         run = None
+        rgba = halves.target(i)
         if i == 0 and plan.steady:   # still tiles look the same at every instant: once, at full weight
-            run, _ = ctx.prepare_sharp_pass(snap, 1.0, rgba, still_px)
+            run, _ = ctx.prepare_sharp_pass(snap, 1.0, halves.even, still_px)
         elif i == 0:                 # still tiles see the same surfaces: find them once, shade per instant
             # (under still lights, a pixel whose shadow lookups never change is shaded once)
             run, hits = ctx.prepare_sharp_pass(snap, 1.0 / n, rgba, still_px, record=True,
@@ -233,7 +242,8 @@ def _passes(ctx: FrameContext, us: np.ndarray, plan: MovingTiles | None, split: 
             if one_pass:
                 # only presence differs between the instants: every instant in one pass, each
                 # surface a sub-sample shows shaded once
-                yield ctx.prepare_over_recorded_pass(snap, behind, plan.changing, 1.0 / n, rgba, instants=us)
+                yield ctx.prepare_over_recorded_pass(snap, behind, plan.changing, 1.0 / n, halves.even, instants=us,
+                                                     rgba_odd=halves.odd)
                 ctx.counters["accumulation_presence_pass"] = True
                 return
             run = ctx.prepare_over_recorded_pass(snap, behind, plan.changing, 1.0 / n, rgba)

@@ -498,8 +498,8 @@ class FrameContext:
                                  kept=rec_kept if shade else None)
 
     def prepare_over_recorded_pass(self, snapshot: Snapshot, hits: "RecordedHits", triangles: np.ndarray,
-                                   weight: float, rgba: wp.array,
-                                   instants: np.ndarray | None = None) -> "Callable[[], None] | None":
+                                   weight: float, rgba: wp.array, instants: np.ndarray | None = None,
+                                   rgba_odd: wp.array | None = None) -> "Callable[[], None] | None":
         """A pass that, run, adds weight × the sharp image of one instant at the recorded pixels,
         where the recorded surfaces (prepare_record_pass) stand still and only `triangles` (a (T,)
         mask) change: those are rasterised and the nearer of them and the recorded hit shown (the
@@ -509,24 +509,12 @@ class FrameContext:
         With `instants` (shutter fractions), one pass adds weight × each of those instants' images
         in turn, for a frame where nothing moves, shading is steady (hits recorded with their
         radiance) and `triangles` change only in presence: render_over_recorded_instants, each
-        changing surface shaded once per sub-sample instead of once per instant."""
+        changing surface shaded once per sub-sample instead of once per instant; the odd-indexed
+        instants then add into rgba_odd when given (accumulation's half sums, methods/halves.py)."""
         tris, _ = self.front_triangles(snapshot, triangles)
         k = np.zeros(len(tris), np.int32)
-        bins = self.bin(snapshot.positions[None], tris, k, k)
         # the bins list triangle indices: every triangle is an entry of the instant's geometry
-        num = self.scene.num_triangles
-        boxes = np.zeros((num, 4), np.float32)
-        boxes[tris] = bins.entry_boxes
-        slabs = bins.entry_bands.shape[1] if bins.entry_bands is not None else 1
-        bands = np.tile(np.array([0.0, 0.0, -1.0, 1.0], np.float32), (num, slabs, 1))
-        if bins.entry_bands is not None:
-            bands[tris] = bins.entry_bands
-        bins.tile_entries = tris[bins.tile_entries].astype(np.int32)
-        bins.entry_boxes, bins.entry_bands = boxes, bands
-        if bins.entry_near is not None:
-            near = np.zeros(num, np.float32)
-            near[tris] = bins.entry_near
-            bins.entry_near = near
+        bins = self.bin(snapshot.positions[None], tris, k, k).by_triangle(tris, self.scene.num_triangles)
         geo = self.per_triangle_geometry(snapshot)
         sh = self.shading([snapshot])
         b = make_bins(bins, self.device)
@@ -547,7 +535,8 @@ class FrameContext:
                 with self.timed("render"):
                     launch_pixels(render_over_recorded_instants, count,
                                   lambda first, _n: [view, geo, sh, b, us, weight, hits.pixels, first, hits.entries,
-                                                     hits.hits, hits.colors, cache_e, cache_color, rgba],
+                                                     hits.hits, hits.colors, cache_e, cache_color, rgba,
+                                                     rgba if rgba_odd is None else rgba_odd],
                                   self.device, self.settings.threads, bands_per_thread=FINE_BANDS, widest=SHARP_WIDEST)
             return run_instants
 

@@ -18,6 +18,7 @@ import numpy as np
 import warp as wp
 
 from .frame import FrameContext
+from .halves import rms
 from ..kernels.cutout import cutout_hides, cutout_opacity, has_cutout, opacity_hides
 from ..kernels.dome import dome_at, dome_over
 from ..kernels.kernel_types import Bins, Geometry, Shading, View
@@ -93,7 +94,11 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
                              first_pixel: int,
                              # outputs (scratch rows are per band: row = tid)
                              times: wp.array2d(dtype=float), best_z: wp.array2d(dtype=float),
-                             best_e: wp.array2d(dtype=int), rgba: wp.array2d(dtype=float)):
+                             best_e: wp.array2d(dtype=int), rgba: wp.array2d(dtype=float),
+                             half_diff: wp.array2d(dtype=float)):
+    """rgba[pix] += weight × the pixel's mean over its n samples; half_diff[pix] (when it has a
+    row per pixel) += weight × (that mean − the mean of its even-indexed samples alone), for the
+    frame's error estimate (methods/halves.py); 0 where the pixel is its samples' exact expectation."""
     tid = wp.tid()
     pix = first_pixel + tid
     px = pix % view.width
@@ -167,6 +172,9 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
             best_e[tid, j] = e_static
     color = wp.vec3(0.0, 0.0, 0.0)
     cover = float(0.0)
+    even_color = wp.vec3(0.0, 0.0, 0.0)
+    even_cover = float(0.0)
+    halves = n > 1 and half_diff.shape[0] > pix
     if moving_seen == 0 and lights_static != 0:
         # every sample sees the same static surface (or nothing) under still lights: the samples'
         # expectation exactly, with a moving shadow averaged over the shutter (one lookup where
@@ -190,6 +198,7 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
         kept_c1 = wp.vec3(0.0, 0.0, 0.0)
         for j in range(n):
             e = best_e[tid, j]
+            before = color
             if e >= 0:
                 if keep and e == kept_e0:
                     color = color + kept_c0
@@ -218,8 +227,15 @@ def render_stochastic_kernel(view: View, geo: Geometry, sh: Shading, static_bins
                 cover = cover + 1.0
             else:
                 color = color + dome_at(sh, d, times[tid, j])
+            if j % 2 == 0:
+                even_color = even_color + (color - before)
+                if e >= 0:
+                    even_cover = even_cover + 1.0
         color = color / float(n)
         cover = cover / float(n)
+        if halves:
+            n_even = float((n + 1) // 2)
+            add_pixel(half_diff, pix, weight, color - even_color / n_even, cover - even_cover / n_even)
     add_pixel(rgba, pix, weight, color, cover)
 
 
@@ -229,6 +245,8 @@ def render_stochastic(ctx: FrameContext) -> np.ndarray:
     dev = ctx.device
     plan, geo, (static_bins, moving_bins), shading, view = prepare_motion(ctx)
     rgba = wp.zeros((ctx.num_pixels, 4), dtype=float, device=dev)
+    # the frame minus its even samples' frame, pixel by pixel (the error estimate; n > 1)
+    half_diff = wp.zeros((ctx.num_pixels if n > 1 else 1, 4), dtype=float, device=dev)
     sh = shading()
     sh.shadow_nearest = 1
     subs = ctx.sub_pixel_offsets()
@@ -244,12 +262,13 @@ def render_stochastic(ctx: FrameContext) -> np.ndarray:
             return [view, geo, sh, static_bins, moving_bins, sub_v, n, seed, lights_static, keep_still, 1.0 / len(subs),
                     first,
                     wp.empty((count, n), dtype=float, device=dev), wp.empty((count, n), dtype=float, device=dev),
-                    wp.empty((count, n), dtype=int, device=dev), rgba]
+                    wp.empty((count, n), dtype=int, device=dev), rgba, half_diff]
 
         with ctx.timed("render"):
             launch_pixels(render_stochastic_kernel, ctx.num_pixels, inputs, dev, s.threads, max_band=max_band,
                           bands_per_thread=FINE_BANDS)
     ctx.counters.update({"samples_per_pixel": n, "seed": s.resolved_seed,
                          "stochastic_still_radiance_kept": bool(keep_still),
-                         "motion_segments": plan.segments_per_prim, "entries": int(len(plan.entry_tri))})
+                         "motion_segments": plan.segments_per_prim, "entries": int(len(plan.entry_tri)),
+                         "error_estimate": rms(half_diff.numpy()) if n > 1 else None})
     return rgba.numpy()

@@ -45,6 +45,24 @@ class TileBins:
     def num_pairs(self) -> int:
         return len(self.tile_entries)
 
+    def by_triangle(self, tris: np.ndarray, num_triangles: int) -> "TileBins":
+        """These bins (of entries tris (E,), triangle indices) re-indexed in place so that every
+        triangle of num_triangles is an entry: lists hold triangle indices, per-entry tables have a
+        row per triangle (unlisted rows zero; their slabs pass every pixel)."""
+        boxes = np.zeros((num_triangles, 4), np.float32)
+        boxes[tris] = self.entry_boxes
+        slabs = self.entry_bands.shape[1] if self.entry_bands is not None else 1
+        bands = np.tile(np.array([0.0, 0.0, -1.0, 1.0], np.float32), (num_triangles, slabs, 1))
+        if self.entry_bands is not None:
+            bands[tris] = self.entry_bands
+        self.tile_entries = tris[self.tile_entries].astype(np.int32)
+        self.entry_boxes, self.entry_bands = boxes, bands
+        if self.entry_near is not None:
+            near = np.zeros(num_triangles, np.float32)
+            near[tris] = self.entry_near
+            self.entry_near = near
+        return self
+
 
 #: entries at one knot from which its bounds come from the screen-bounds kernel rather than NumPy
 #: (below it, the kernel's launches cost more than NumPy's few calls: demo's accumulation-64 frame

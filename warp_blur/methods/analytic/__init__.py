@@ -19,6 +19,7 @@ import numpy as np
 import warp as wp
 
 from ..frame import FrameContext
+from ..halves import rms
 from ...core.parallel import BandCounter, launch_pixels
 from .intervals import classify_samples, fill_intervals, shade_static_samples
 from .occlusion import CULL_ROW_BYTES_BUDGET, MAX_INSTANT_CULL_SLOTS
@@ -110,12 +111,13 @@ class _IntervalPass:
     while the frame's shadow maps are still being built (segments.start_shading)."""
 
     def __init__(self, ctx: FrameContext, view, geo, shading, moving_bins, sub: wp.vec2, n_shade: int,
-                 lights_static: int, static_hit: wp.array, listed: wp.array, rgba: wp.array, weight: float,
-                 fallbacks: BandCounter, truncated: BandCounter, shaded: BandCounter, reused: BandCounter,
+                 lights_static: int, static_hit: wp.array, listed: wp.array, rgba: wp.array, half_diff: wp.array,
+                 weight: float, fallbacks: BandCounter, truncated: BandCounter, shaded: BandCounter, reused: BandCounter,
                  skipped: BandCounter, budget: int) -> None:
         self.ctx, self.view, self.geo, self.shading, self.moving_bins = ctx, view, geo, shading, moving_bins
         self.sub, self.n_shade, self.lights_static = sub, n_shade, lights_static
         self.static_hit, self.listed, self.rgba, self.weight = static_hit, listed, rgba, weight
+        self.half_diff = half_diff   # the frame minus its even time slots' frame (resolve_bitmask)
         self.fallbacks, self.truncated, self.shaded, self.reused = fallbacks, truncated, shaded, reused
         self.skipped = skipped
         self.total, self.max, self.peak_bytes, self.chunks, self.refilled = 0, 0, 0, 0, 0
@@ -183,7 +185,7 @@ class _IntervalPass:
                                                 int(SEGMENT_JUNCTIONS) | 2 * int(SHARED_EDGES), self.weight, first, first,
                                                 order,
                                                 wp.zeros((n, 3 * words), dtype=wp.uint32, device=dev),
-                                                self.shaded.band(), self.reused.band(), self.rgba],
+                                                self.shaded.band(), self.reused.band(), self.rgba, self.half_diff],
                               dev, s.threads)
             else:
                 launch_pixels(resolve_exact, len(pixels_np),
@@ -243,6 +245,8 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
     geo.clip_bits = bits
     num_px = ctx.num_pixels
     rgba = wp.zeros((num_px, 4), dtype=float, device=dev)
+    # the frame minus its even time slots' frame, pixel by pixel (the error estimate; bitmask only)
+    half_diff = wp.zeros((num_px if bits > 0 else 1, 4), dtype=float, device=dev)
     fallbacks, truncated, shaded, reused, skipped = (BandCounter(dev), BandCounter(dev), BandCounter(dev),
                                                      BandCounter(dev), BandCounter(dev))
     # int32 interval indices: chunks stay below 2**30 intervals
@@ -264,7 +268,7 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
         pixels_np = np.nonzero(listed.numpy())[0].astype(np.int32)
         listed_total += len(pixels_np)
         interval_pass = _IntervalPass(ctx, view, geo, shading, moving_bins, sub_v, n_shade, lights_static, static_hit,
-                                      listed, rgba, weight, fallbacks, truncated, shaded, reused, skipped, budget)
+                                      listed, rgba, half_diff, weight, fallbacks, truncated, shaded, reused, skipped, budget)
         interval_pass.run(pixels_np, budget)
         passes.append(interval_pass)
         if direct and len(pixels_np) < num_px:
@@ -288,5 +292,6 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
         "intervals_shaded": shaded.total(), "junction_ends_reused": reused.total(),
         "near_far_fallbacks": fallbacks.total(), "exact_truncations": truncated.total(),
         "entries_skipped_by_depth": skipped.total(),
+        "error_estimate": rms(half_diff.numpy()) if bits > 0 else None,
     })
     return rgba.numpy()

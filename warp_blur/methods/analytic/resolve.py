@@ -24,6 +24,7 @@ import warp as wp
 from ...kernels.dome import dome_along, dome_at, dome_over
 from ...kernels.kernel_types import Geometry, Shading, View
 from .moving import Moving, entry_moving, entry_time, sample_ray
+from .junctions import take_junction
 from .radiance import (boundary_radiance, lerp_in_time, radiance_at, radiance_plan, radiance_plan_known, shade_at,
                        span_radiance, static_receiver, sub_piece_time)
 
@@ -35,6 +36,8 @@ INDEX_BIT_1 = wp.constant(wp.uint32(0xCCCCCCCC))
 INDEX_BIT_2 = wp.constant(wp.uint32(0xF0F0F0F0))
 INDEX_BIT_3 = wp.constant(wp.uint32(0xFF00FF00))
 INDEX_BIT_4 = wp.constant(wp.uint32(0xFFFF0000))
+#: bits whose index is even (the half frame of the error estimate: methods/halves.py)
+INDEX_EVEN = wp.constant(wp.uint32(0x55555555))
 #: intervals at most this long (shutter fraction) are shaded once, at their visible slots' mean
 SHORT_SPAN = wp.constant(1.0 / 16.0)
 
@@ -148,12 +151,14 @@ def shadow_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: 
 def visible_radiance(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, t: wp.vec2,
                      n_shade_max: int, lights_static: int, bits: int, masks: wp.array2d(dtype=wp.uint32), row: int,
                      col: int, known: int, known_a: wp.vec3, known_b: wp.vec3):
-    """(colour, linear, radiance at the start, at the end): the interval (entry e, shutter span t)
+    """(colour, linear, radiance at the start, at the end, shading residual): the interval (entry e, shutter span t)
     shaded over its visible slots (the set bits of masks[row, col:]): the sum over them of its
     radiance, / bits. Each linear sub-piece adds (its visible slots) × its radiance at their mean
     time; sub-piece ends are shaded only for sub-pieces with visible slots. known, known_a,
     known_b: radiance_plan_known's (ends already shaded); linear = 1 when both ends returned are
-    the interval's own radiance there."""
+    the interval's own radiance there. The residual estimates what the colour lacks where the
+    radiance curves: a sub-piece's chord misses a parabola by 2/3 of its middle's deviation on
+    average, the interval's middle deviation / n² (0 where the interval is not linear)."""
     m = entry_moving(geo, e)
     zero = wp.vec3(0.0, 0.0, 0.0)
     still = n_shade_max > 1 and sh.shadow_times > 1 and static_receiver(geo, sh, e, lights_static) != 0
@@ -163,12 +168,12 @@ def visible_radiance(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3,
         sums = slot_sums(masks, row, col, slots[0], slots[1])
         if still and sums[0] < slots[1] - slots[0]:
             # still surface under moving shadows: averaged over the visible slots only, not the span
-            return shadow_pieces(view, geo, sh, e, m, o, d, t, bits, masks, row, col), 0, zero, zero
+            return shadow_pieces(view, geo, sh, e, m, o, d, t, bits, masks, row, col), 0, zero, zero, zero
         if short:
             # short: one shading at the visible slots' mean time, shadows over their extent
             t_mean = (float(sums[1]) / float(sums[0]) + 0.5) / float(bits)
             share = float(sums[0]) / float(bits)
-            return radiance_at(view, geo, sh, e, m, o, d, entry_time(m, t_mean), share) * share, 0, zero, zero
+            return radiance_at(view, geo, sh, e, m, o, d, entry_time(m, t_mean), share) * share, 0, zero, zero, zero
     s_a = entry_time(m, t[0])
     s_b = entry_time(m, t[1])
     n, linear, la, lm, lb = radiance_plan_known(view, geo, sh, e, m, o, d, s_a, s_b, n_shade_max, lights_static,
@@ -176,6 +181,7 @@ def visible_radiance(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3,
     color = wp.vec3(0.0, 0.0, 0.0)
     r0 = la
     have_r0 = int(1)
+    seen = float(0.0)
     for k in range(n):
         t0 = sub_piece_time(t, k, n)
         t1 = sub_piece_time(t, k + 1, n)
@@ -183,6 +189,7 @@ def visible_radiance(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3,
         sums = slot_sums(masks, row, col, slots[0], slots[1])
         if sums[0] > 0:
             share = float(sums[0]) / float(bits)
+            seen += share
             if linear == 0:
                 color = color + la * share
             else:
@@ -195,81 +202,10 @@ def visible_radiance(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3,
                 have_r0 = 1
         else:
             have_r0 = 0
-    return color, linear, la, lb
-
-
-@wp.func
-def smooth_neighbours(geo: Geometry, sh: Shading, a: int, b: int) -> int:
-    """1 when triangles a and b shade a point on their common edge alike: they share an edge (two
-    vertex indices, wound consistently), both interpolate vertex normals, and have the same
-    untextured material without a normal map, with equal corner colours at the shared vertices."""
-    if (geo.tri_flags[a] & 2) == 0 or (geo.tri_flags[b] & 2) == 0:
-        return 0
-    m = geo.tri_material[a]
-    if geo.tri_material[b] != m or sh.materials[m, 21] > 0.5 or sh.materials[m, 22] >= 0.0:
-        return 0
-    va = geo.tri_vertices[a]
-    vb = geo.tri_vertices[b]
-    shared = int(0)
-    wound = int(0)
-    for i in range(3):
-        for j in range(3):
-            if va[i] == vb[j]:
-                shared += 1
-                ca = geo.tri_colors[3 * a + i]
-                cb = geo.tri_colors[3 * b + j]
-                if ca[0] != cb[0] or ca[1] != cb[1] or ca[2] != cb[2]:
-                    return 0
-                # a's edge i -> i + 1 runs backwards in b (j + 1 -> j): consistent winding
-                if va[(i + 1) % 3] == vb[(j + 2) % 3]:
-                    wound = 1
-    if shared == 2 and wound == 1:
-        return 1
-    return 0
-
-
-@wp.func
-def junction(geo: Geometry, sh: Shading, e: int, t: wp.vec2, other: int, other_t: wp.vec2, kinds: int) -> int:
-    """1 when the interval (entry e, shutter span t) starts where interval `other` (span other_t)
-    ends, 2 when it ends where `other` starts, at the same point at the same time: (kinds bit 0)
-    a motion-segment junction of one triangle (the two entries are consecutive segments of it),
-    or (bit 1) the edge two smooth neighbours of one mesh share (entries of the same span; the
-    edge quadratics are exactly antisymmetric, so the ray crosses it at the same time in both),
-    or where one entry's span was cut in pieces. Else 0."""
-    if other < 0:
-        return 0
-    k0 = geo.entry_k0[e]
-    k1 = geo.entry_k1[e]
-    if k0 == k1:
-        return 0
-    same_span = geo.entry_k0[other] == k0 and geo.entry_k1[other] == k1
-    if geo.entry_tri[other] == geo.entry_tri[e]:
-        if (kinds & 1) != 0:
-            if (geo.entry_k1[other] == k0 or same_span) and t[0] == other_t[1]:
-                return 1
-            if (geo.entry_k0[other] == k1 or same_span) and t[1] == other_t[0]:
-                return 2
-        return 0
-    if (kinds & 2) != 0 and same_span and (t[0] == other_t[1] or t[1] == other_t[0]):
-        if smooth_neighbours(geo, sh, geo.entry_tri[e], geo.entry_tri[other]) != 0:
-            if t[0] == other_t[1]:
-                return 1
-            return 2
-    return 0
-
-
-@wp.func
-def take_junction(geo: Geometry, sh: Shading, e: int, t: wp.vec2, other: int, other_t: wp.vec2, other_a: wp.vec3,
-                  other_b: wp.vec3, known: int, known_a: wp.vec3, known_b: wp.vec3, kinds: int):
-    """(known, known_a, known_b) with the end of the interval (entry e, span t) that interval
-    `other` (span other_t, radiance other_a at its start, other_b at its end) meets at a junction
-    taken from it, when that end is not known yet."""
-    j = junction(geo, sh, e, t, other, other_t, kinds)
-    if j == 1 and (known & 1) == 0:
-        return known | 1, other_b, known_b
-    if j == 2 and (known & 2) == 0:
-        return known | 2, known_a, other_a
-    return known, known_a, known_b
+    residual = zero
+    if linear != 0:
+        residual = (lm - 0.5 * (la + lb)) * (seen * (2.0 / 3.0) / float(n * n))
+    return color, linear, la, lb, residual
 
 
 @wp.func
@@ -342,7 +278,7 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
                     keep_still: int, junctions: int, weight: float, first: int, band_first: int,
                     # outputs
                     order: wp.array(dtype=int), masks: wp.array2d(dtype=wp.uint32), shaded: wp.array(dtype=int),
-                    reused: wp.array(dtype=int), rgba: wp.array2d(dtype=float)):
+                    reused: wp.array(dtype=int), rgba: wp.array2d(dtype=float), half_diff: wp.array2d(dtype=float)):
     """rgba[pixels[k]] += weight × the resolved colour of listed sample k = first + tid (intervals
     spans[k][0]:spans[k][1] of the chunk's arrays, at sub-pixel position sub); masks is per-thread
     scratch (band rows, 3 × words: covered, stolen, visible); shaded[0] counts the intervals shaded.
@@ -354,7 +290,9 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
     radiance there instead of shading it again: bit 0 at a motion-segment junction of the same
     triangle (or where one entry's span was cut in pieces), bit 1 across the edge two smooth
     neighbours share. reused[0] counts the ends taken (the ends of linear intervals only: a short
-    or still one is shaded otherwise)."""
+    or still one is shaded otherwise). half_diff[pixels[k]] (when it has a row per pixel) += weight ×
+    (the colour − the colour of the even-indexed slots alone, each interval's radiance taken as its
+    mean over its visible slots), for the frame's error estimate (methods/halves.py)."""
     k = first + wp.tid()
     pix = pixels[k]
     row = k - band_first
@@ -366,7 +304,9 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
     sort_by_near_depth(order, iv_z, lo, hi)
     o, d = sample_ray(view, pix % view.width, pix // view.width, sub)
     color = wp.vec3(0.0, 0.0, 0.0)
+    half = wp.vec3(0.0, 0.0, 0.0)   # colour minus the even slots' colour
     covered = int(0)
+    covered_even = int(0)
     kept_e = int(-1)
     kept_r = wp.vec3(0.0, 0.0, 0.0)
     # the last two linear intervals shaded (entry, shutter span, radiance at both ends): an
@@ -420,13 +360,17 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
                                 masks[row, words + w] = masks[row, words + w] | word_mask(sj[0], sj[1], w)
                     jj += 1
                 visible = int(0)
+                visible_even = int(0)
                 for w in range(w0, w1):
                     mine = word_mask(si[0], si[1], w) & ~masks[row, words + w]
                     new = mine & ~masks[row, w]
                     masks[row, 2 * words + w] = new
                     visible += popcount(new)
+                    visible_even += popcount(new & INDEX_EVEN)
                     masks[row, w] = masks[row, w] | mine
                 covered += visible
+                covered_even += visible_even
+                before = color
                 if visible > 0:
                     e = iv_e[i]
                     if keep_still != 0 and geo.entry_k0[e] == geo.entry_k1[e]:
@@ -445,9 +389,11 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
                                                                     known_a, known_b, junctions)
                             known, known_a, known_b = take_junction(geo, sh, e, ti, j2_e, j2_t, j2_a, j2_b, known,
                                                                     known_a, known_b, junctions)
-                        c, linear, ra, rb = visible_radiance(view, geo, sh, e, o, d, ti, n_shade_max, lights_static,
-                                                             bits, masks, row, 2 * words, known, known_a, known_b)
+                        c, linear, ra, rb, residual = visible_radiance(view, geo, sh, e, o, d, ti, n_shade_max,
+                                                                       lights_static, bits, masks, row, 2 * words,
+                                                                       known, known_a, known_b)
                         color = color + c
+                        half = half + residual
                         if linear != 0:
                             reused[0] = reused[0] + (known & 1) + known // 2
                             j2_e = j1_e
@@ -458,7 +404,17 @@ def resolve_bitmask(view: View, geo: Geometry, sh: Shading, sub: wp.vec2, n_shad
                             j1_t = ti
                             j1_a = ra
                             j1_b = rb
-    color = color + dome_uncovered(sh, d, masks, row, words, bits, covered)
+                    half = half + (color - before) * (1.0 - 2.0 * float(visible_even) / float(visible))
+    dome = dome_uncovered(sh, d, masks, row, words, bits, covered)
+    color = color + dome
+    if half_diff.shape[0] > pix:
+        if covered < bits:
+            half = half + dome * (1.0 - float(bits - 2 * covered_even) / float(bits - covered))
+        cover_half = float(covered - 2 * covered_even) / float(bits)
+        half_diff[pix, 0] = half_diff[pix, 0] + weight * half[0]
+        half_diff[pix, 1] = half_diff[pix, 1] + weight * half[1]
+        half_diff[pix, 2] = half_diff[pix, 2] + weight * half[2]
+        half_diff[pix, 3] = half_diff[pix, 3] + weight * cover_half
     rgba[pix, 0] = rgba[pix, 0] + weight * color[0]
     rgba[pix, 1] = rgba[pix, 1] + weight * color[1]
     rgba[pix, 2] = rgba[pix, 2] + weight * color[2]
