@@ -88,6 +88,18 @@ def sweeps(quick: bool) -> dict[str, list[dict]]:
     return out
 
 
+def estimate_ranges(rows: list[dict]) -> dict[str, tuple[float, float]]:
+    """Per method, the lowest and highest ratio of a frame's own error estimate to its measured
+    RMSE over the rows that have one (velocity has none)."""
+    ranges: dict[str, tuple[float, float]] = {}
+    for r in rows:
+        ratio = r.get("estimate_ratio")
+        if ratio not in ("", None):
+            lo, hi = ranges.get(r["method"], (math.inf, -math.inf))
+            ranges[r["method"]] = (min(lo, ratio), max(hi, ratio))
+    return ranges
+
+
 def time_to_error(points: list[tuple[float, float]], target: float) -> float:
     """Time a method needs for error <= target, interpolated log-log along its (time, error)
     curve sorted by time; inf when no point reaches it."""
@@ -134,10 +146,14 @@ def main() -> None:
         timed = timed_rounds([lambda r=renderer: r.render(frame) for _m, _k, renderer in configs], repeats,
                              progress=lambda: bar.update(1))
         for (method, knob, _r), (seconds, result) in zip(configs, timed):
+            error = rmse(result.rgba, ref)
+            estimate = result.stats.get("error_estimate")
             rows.append({"scene": name, "method": method, "knob": json.dumps(knob), "seconds": seconds,
-                         "rmse": rmse(result.rgba, ref), "psnr": psnr(result.rgba, ref),
+                         "rmse": error, "psnr": psnr(result.rgba, ref),
                          "max_abs": max_abs(result.rgba, ref),
-                         "intervals_per_pixel": result.stats.get("intervals_per_pixel_mean", "")})
+                         "intervals_per_pixel": result.stats.get("intervals_per_pixel_mean", ""),
+                         "estimate": "" if estimate is None else estimate,
+                         "estimate_ratio": "" if estimate is None or error <= 0 else estimate / error})
         del configs, timed
     bar.close()
     os.makedirs(OUT, exist_ok=True)
@@ -161,7 +177,11 @@ def main() -> None:
             summary.append(entry)
     with open(os.path.join(OUT, "tradeoff.json"), "w") as f:
         json.dump({"runs": rows, "time_to_error": summary, "quick": args.quick}, f, indent=2, default=str)
-    print(table(rows, ["scene", "method", "knob", "seconds", "rmse", "max_abs", "intervals_per_pixel"]))
+    print(table(rows, ["scene", "method", "knob", "seconds", "rmse", "max_abs", "intervals_per_pixel",
+                       "estimate_ratio"]))
+    print()
+    print("each frame's own error estimate (stats error_estimate) / its RMSE against the reference: "
+          + "; ".join(f"{m} {lo:.2f}-{hi:.2f}" for m, (lo, hi) in estimate_ranges(rows).items()))
     print()
     cols = ["scene", "target_rmse"] + [f"t_{m}" for m in plan] + [f"analytic_speedup_vs_{m}" for m in plan if m != "analytic"]
     print(table(summary, cols + ["targets"]))
