@@ -112,8 +112,8 @@ class _IntervalPass:
 
     def __init__(self, ctx: FrameContext, view, geo, shading, moving_bins, sub: wp.vec2, n_shade: int,
                  lights_static: int, static_hit: wp.array, listed: wp.array, rgba: wp.array, half_diff: wp.array,
-                 weight: float, fallbacks: BandCounter, truncated: BandCounter, shaded: BandCounter, reused: BandCounter,
-                 skipped: BandCounter, budget: int) -> None:
+                 weight: float, fallbacks: BandCounter, truncated: BandCounter, shaded: BandCounter,
+                 reused: BandCounter, skipped: BandCounter, budget: int) -> None:
         self.ctx, self.view, self.geo, self.shading, self.moving_bins = ctx, view, geo, shading, moving_bins
         self.sub, self.n_shade, self.lights_static = sub, n_shade, lights_static
         self.static_hit, self.listed, self.rgba, self.weight = static_hit, listed, rgba, weight
@@ -185,7 +185,8 @@ class _IntervalPass:
                                                 int(SEGMENT_JUNCTIONS) | 2 * int(SHARED_EDGES), self.weight, first, first,
                                                 order,
                                                 wp.zeros((n, 3 * words), dtype=wp.uint32, device=dev),
-                                                self.shaded.band(), self.reused.band(), self.rgba, self.half_diff],
+                                                self.shaded.band(), self.reused.band(), self.rgba,
+                                                self.half_diff],
                               dev, s.threads)
             else:
                 launch_pixels(resolve_exact, len(pixels_np),
@@ -268,7 +269,8 @@ def render_analytic(ctx: FrameContext) -> np.ndarray:
         pixels_np = np.nonzero(listed.numpy())[0].astype(np.int32)
         listed_total += len(pixels_np)
         interval_pass = _IntervalPass(ctx, view, geo, shading, moving_bins, sub_v, n_shade, lights_static, static_hit,
-                                      listed, rgba, half_diff, weight, fallbacks, truncated, shaded, reused, skipped, budget)
+                                      listed, rgba, half_diff, weight, fallbacks, truncated, shaded, reused, skipped,
+                                      budget)
         interval_pass.run(pixels_np, budget)
         passes.append(interval_pass)
         if direct and len(pixels_np) < num_px:

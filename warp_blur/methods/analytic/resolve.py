@@ -151,8 +151,8 @@ def shadow_pieces(view: View, geo: Geometry, sh: Shading, e: int, m: Moving, o: 
 def visible_radiance(view: View, geo: Geometry, sh: Shading, e: int, o: wp.vec3, d: wp.vec3, t: wp.vec2,
                      n_shade_max: int, lights_static: int, bits: int, masks: wp.array2d(dtype=wp.uint32), row: int,
                      col: int, known: int, known_a: wp.vec3, known_b: wp.vec3):
-    """(colour, linear, radiance at the start, at the end, shading residual): the interval (entry e, shutter span t)
-    shaded over its visible slots (the set bits of masks[row, col:]): the sum over them of its
+    """(colour, linear, radiance at the start, at the end, shading residual): the interval (entry
+    e, shutter span t) shaded over its visible slots (the set bits of masks[row, col:]): the sum over them of its
     radiance, / bits. Each linear sub-piece adds (its visible slots) × its radiance at their mean
     time; sub-piece ends are shaded only for sub-pieces with visible slots. known, known_a,
     known_b: radiance_plan_known's (ends already shaded); linear = 1 when both ends returned are
