@@ -183,7 +183,8 @@ def render_accumulation(ctx: FrameContext) -> np.ndarray:
     run_prepared(_passes(ctx, us, plan, split, split and one_pass, halves, recorded))
     exact = None   # pixels added at full weight: the same at every instant
     if plan is not None and plan.steady:
-        exact = np.setdiff1d(np.arange(ctx.num_pixels), plan.pixels)
+        exact = np.ones(ctx.num_pixels, bool)   # a mask: np.setdiff1d took ~180 ms at 640×480
+        exact[plan.pixels] = False
     done = [h for h in recorded if h is not None and h.done is not None]
     if done:   # the still pixels found to look the same at every instant, shaded once
         flags = done[0].done.numpy()

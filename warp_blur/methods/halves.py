@@ -47,7 +47,7 @@ class InstantHalves:
 
     def estimate(self, exact_pixels: np.ndarray | None = None) -> float | None:
         """The frame minus its even instants' average (None for one instant): odd − even × n_odd /
-        n_even, zero at exact_pixels (flat indices added at full weight)."""
+        n_even, zero at exact_pixels (those added at full weight: flat indices or a (P,) mask)."""
         if self.odd is self.even:
             return None
         n_even = (self.instants + 1) // 2
