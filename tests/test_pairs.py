@@ -10,7 +10,7 @@ import pytest
 import warp_blur as wb
 from warp_blur.output.metrics import max_abs
 from warp_blur.shadows.layout import Sample
-from warp_blur.shadows.pairs import is_convex_solid, light_shadows_nothing
+from warp_blur.shadows.pairs import is_convex_solid, light_shadows_nothing, may_drop_lights
 from warp_blur.usd.lights import DISK, DISTANT, LIGHT_WIDTH, RECT, SPHERE
 
 from conftest import SCENES
@@ -121,6 +121,15 @@ def test_a_receiver_that_may_shadow_itself_keeps_the_maps():
     assert not shadows_nothing(knots_of(pos, dented, pos), tris, obj)   # folded at one knot only
 
 
+def test_lights_may_be_dropped_only_where_no_lit_surface_may_shadow_itself():
+    """may_drop_lights: the pre-check before accumulation keeps every instant as a knot."""
+    receives = np.array([True, True, False])
+    safe = np.array([True, False, False])
+    assert not may_drop_lights(np.ones(3, bool), receives, safe)             # the second may shadow itself
+    assert may_drop_lights(np.array([True, False, True]), receives, safe)    # ... unless it is not seen
+    assert not may_drop_lights(np.zeros(0, bool), receives, safe)            # no visibility given: all seen
+
+
 def test_closed_flat_prims_without_normal_maps_are_self_safe():
     """pair_receivers: a normal map (like smooth normals) may light a face turned from the light."""
     from types import SimpleNamespace
@@ -191,13 +200,14 @@ def culled_and_kept(path: str, monkeypatch, **kw):
     return culled, wb.render(path, aovs=(), **kw)
 
 
-@pytest.mark.parametrize("method", ["analytic", "stochastic", "velocity"])
+@pytest.mark.parametrize("method", ["analytic", "stochastic", "velocity", "accumulation"])
 def test_rotations_sun_shadows_nothing_so_it_gets_no_maps(method, monkeypatch):
     """rotation.usda: the blades are emissive, the box a convex flat-shaded Cube, and the blades'
     outline across the sun's beam never meets the box's: its frame renders without maps, the same
     image but where the maps' bias left the box's own faces a trace of self-shadow (measured
     3.1e-5 at 160×120). The velocity method's knots are the scene at open, centre and close, all
-    it shades (session 67: its maps were 30% of its frame here)."""
+    it shades (session 67: its maps were 30% of its frame here); accumulation's are its instants
+    (session 70)."""
     without, with_maps = culled_and_kept(os.path.join(SCENES, "rotation.usda"), monkeypatch, frame=2.0,
                                          resolution=(128, 96), method=method, samples=4)
     assert without.stats["shadow_lights_unneeded"] == 1 and "shadow_lights" not in without.stats
@@ -223,24 +233,35 @@ def cubes_under_a_lamp_stage(path: str) -> str:
     return path
 
 
-def test_a_lamp_over_cubes_apart_gets_no_maps(scene_path, monkeypatch):
+@pytest.mark.parametrize("method", ["analytic", "accumulation"])
+def test_a_lamp_over_cubes_apart_gets_no_maps(scene_path, monkeypatch, method):
     """The lamp's maps are not built, and the image is the one with them but for their own
     self-shadow trace on the cubes' lit faces, which only ever darkened: without the maps no pixel
     is darker, and a few at the faces' edges are brighter (measured: 42 of 6912 pixels, by at most
     1.0e-3 at 96×72; direct maps draw the same trace)."""
     culled, kept = culled_and_kept(cubes_under_a_lamp_stage(scene_path()), monkeypatch, frame=1.0,
-                                   resolution=(96, 72), method="analytic")
+                                   resolution=(96, 72), method=method)
     assert culled.stats["shadow_lights_unneeded"] == 1 and kept.stats["shadow_lights"] == 1
+    if method == "accumulation":   # every instant's positions beyond their memory share: the maps stay
+        import warp_blur.methods.accumulation as accumulation
+        import warp_blur.shadows.pairs as pairs
+        monkeypatch.setattr(accumulation, "KNOT_BUDGET_SHARE", 0.0)
+        monkeypatch.setattr(pairs, "PAIR_CULLING", True)
+        over = wb.render(cubes_under_a_lamp_stage(scene_path()), aovs=(), frame=1.0, resolution=(96, 72), method=method)
+        assert over.stats["shadow_lights"] == 1 and "shadow_lights_unneeded" not in over.stats
+        np.testing.assert_array_equal(over.rgba, kept.rgba)
     lighter = culled.rgba[..., :3] - kept.rgba[..., :3]
     assert lighter.min() >= -1e-6 and lighter.max() <= 2e-3
     assert (np.abs(lighter).max(axis=-1) > 1e-4).mean() < 0.01
 
 
-@pytest.mark.parametrize("method", ["analytic", "velocity"])
+@pytest.mark.parametrize("method", ["analytic", "velocity", "accumulation"])
 def test_a_shadow_that_falls_keeps_its_maps(scene_path, monkeypatch, method):
     """A moving triangle's shadow on a lit quad (open, so it may shadow itself too): the maps stay
-    and the image is what it was."""
+    and the image is what it was (accumulation does not even keep its instants as knots: the lit
+    quad may shadow itself, so no light could be dropped)."""
     culled, kept = culled_and_kept(lit_stage(scene_path()), monkeypatch, frame=1.0, resolution=(96, 72),
                                    method=method)
-    assert culled.stats["shadow_lights_unneeded"] == 0 and culled.stats["shadow_lights"] == 1
+    assert culled.stats.get("shadow_lights_unneeded", 0) == 0 and culled.stats["shadow_lights"] == 1
+    assert ("shadow_lights_unneeded" in culled.stats) == (method != "accumulation")
     np.testing.assert_array_equal(culled.rgba, kept.rgba)

@@ -25,6 +25,7 @@ from ..core.parallel import run_prepared
 from ..core.rows import all_corners, same_rows
 from ..kernels.raster import INSTANT_CACHE_SLOTS
 from ..raster.binning import SAMPLE_MARGIN_PX, TILE_SIZE, entry_pixel_bounds, tile_mask_pixels
+from ..shadows.pairs import may_drop_lights, pair_receivers
 from .frame import FrameContext
 from .halves import InstantHalves
 
@@ -36,6 +37,9 @@ MOVING_SPLIT = True
 STEADY_PIXELS = True
 #: tests switch this off to compare against one pass per instant where only presence changes
 INSTANTS_IN_ONE_PASS = True
+#: share of the memory budget that every instant's positions may take, kept as the shadow maps'
+#: knots (_knots_fit)
+KNOT_BUDGET_SHARE = 0.125
 #: bytes per recorded hit (triangle index and (hit, depth, barycentrics)), held for the frame
 RECORD_BYTES = 4 + 16
 #: bytes per recorded radiance and its flag (moving tiles under still lights)
@@ -79,10 +83,9 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
     scene = ctx.scene
     first = ctx.snapshot(float(us[0]), with_normals=False)
     casts = ctx.may_cast_shadows() and len(first.lights) and (first.lights[:, 17] > 0.5).any()
-    # shadows leave still pixels alike too when every instant shades with the same maps (nothing
-    # moves in any light's view: ShadowMaps.static; lights that move are caught below)
-    maps = ctx.instant_shadow_maps() if casts else None
-    steady = not casts or maps is None or maps.static
+    # every instant's snapshot, kept when the lights that darken nothing lit could be told from them
+    # (shadows/pairs.py: the instants are all the frame shades, so those lights get no maps)
+    knots = [first] if casts and _knots_fit(ctx, first, len(us)) else None
     num_tris = scene.num_triangles
     still_v = np.ones(len(first.positions), bool)
     same_vis = np.ones(num_tris, bool)
@@ -115,7 +118,14 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
         same_vis &= same_t
         differ = ~(same_t & all_corners(same_v, scene.tri_vertices))
         mark(snap.positions, np.nonzero(differ & visible(snap))[0])
-    steady &= lights_still
+        if knots is not None:
+            knots.append(snap)
+    if knots is not None:
+        ctx.instant_knots = knots
+    # shadows leave still pixels alike too when every instant shades with the same maps (nothing
+    # moves in any light's view: ShadowMaps.static; lights that move are caught below)
+    maps = ctx.instant_shadow_maps() if casts else None
+    steady = (not casts or maps is None or maps.static) and lights_still
     still = same_vis & all_corners(still_v, scene.tri_vertices) & ~scene.tri_fractional
     if not still.any():
         return None
@@ -132,6 +142,17 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
     nothing_moves = lights_still and camera_still and still_v.all() and same_vis.all()
     return MovingTiles(tile_mask_pixels(tile_moving, TILE_SIZE, proj.width, proj.height), bool(steady), needed,
                        ~still, bool(lights_still), bool(nothing_moves))
+
+
+def _knots_fit(ctx: FrameContext, first, n: int) -> bool:
+    """Whether n instants' snapshots like `first` are worth keeping as knots for the shadow maps'
+    test of lights that darken nothing lit: it can drop a light (no lit surface that may shadow
+    itself is seen at the first instant, pairs.may_drop_lights) and they fit in KNOT_BUDGET_SHARE
+    of the memory budget."""
+    receivers = pair_receivers(ctx.scene)
+    if receivers is None or not may_drop_lights(first.tri_visible, *receivers):
+        return False
+    return n * first.positions.nbytes <= KNOT_BUDGET_SHARE * ctx.settings.memory_budget_mb * 2**20
 
 
 def tile_rects(ctx: FrameContext, positions: np.ndarray, tris: np.ndarray, with_kept: bool = False):

@@ -88,6 +88,13 @@ def pair_receivers(scene) -> tuple[np.ndarray, np.ndarray] | None:
     return receives, scene.tri_closed & ((scene.tri_flags & FLAG_SMOOTH) == 0) & ~normal_mapped
 
 
+def may_drop_lights(tri_visible: np.ndarray, tri_receives: np.ndarray, tri_self_safe: np.ndarray) -> bool:
+    """False when unneeded_lights must keep every light of a scene whose visibility at one knot is
+    tri_visible ((T,) bool, or empty: all): a lit triangle there may shadow itself."""
+    visible = tri_visible if len(tri_visible) == len(tri_receives) else np.ones(len(tri_receives), bool)
+    return not (visible & tri_receives & ~tri_self_safe).any()
+
+
 def light_shadows_nothing(j: int, knots: list[Sample], tri_vertices: np.ndarray, tri_object: np.ndarray,
                           tri_receives: np.ndarray, tri_self_safe: np.ndarray) -> bool:
     """True when light row j can darken no lit surface of the scene given at the plan's knots
