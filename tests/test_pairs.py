@@ -65,6 +65,20 @@ def test_a_cube_is_a_convex_solid_and_a_dented_one_is_not():
     assert not is_convex_solid(huge, CUBE_TRIS)
 
 
+def test_convexity_of_many_shapes_at_once_is_each_ones():
+    """(K, V, 3) shapes are checked together: convex only when every one is, each in its own scale."""
+    dented = CORNERS.copy()
+    dented[7] = (0.2, 0.2, 0.2)
+    turned = CORNERS @ np.array([[0.6, 0.8, 0.0], [-0.8, 0.6, 0.0], [0.0, 0.0, 1.0]]) * 1e6 + 5e6
+    assert is_convex_solid(np.stack([CORNERS, turned, CORNERS * 1e-300]), CUBE_TRIS)
+    assert not is_convex_solid(np.stack([CORNERS, turned, dented]), CUBE_TRIS)
+    assert not is_convex_solid(np.stack([CORNERS, np.full_like(CORNERS, np.nan)]), CUBE_TRIS)
+    assert not is_convex_solid(np.stack([CORNERS, CORNERS * 0.0]), CUBE_TRIS)   # one shape of no size
+    # beyond MAX_CONVEX_WORK over all shapes: not checked, not convex
+    many = np.repeat(CORNERS[None], 4_000_000 // (len(CUBE_TRIS) * 8) + 1, axis=0)
+    assert not is_convex_solid(many, CUBE_TRIS)
+
+
 def test_cubes_side_by_side_under_the_sun_shadow_nothing():
     pos, tris, obj = cubes((0, 0, 0), (3, 0, 0))
     assert shadows_nothing(knots_of(pos), tris, obj)
