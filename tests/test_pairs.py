@@ -89,10 +89,15 @@ def test_a_cube_above_another_may_shadow_it():
     assert not shadows_nothing(knots_of(pos), tris, obj)
 
 
-def test_a_caster_passing_over_mid_shutter_is_caught_at_the_knots():
+@pytest.mark.parametrize("chunk", [None, 1])
+def test_a_caster_passing_over_mid_shutter_is_caught_at_the_knots(chunk, monkeypatch):
     """B flies over A from x = 3 to x = -3 at height 3: apart at shutter open and close, over A in
     between. The outlines are taken over every knot (and the knots' extents hold the path between
-    them), so both the three knots and the two ends alone keep the maps."""
+    them), so both the three knots and the two ends alone keep the maps; the same with the
+    extents projected a knot at a time (EXTENT_CHUNK)."""
+    if chunk is not None:
+        import warp_blur.shadows.pairs as pairs
+        monkeypatch.setattr(pairs, "EXTENT_CHUNK", chunk)
     ends = [cubes((0, 0, 0), (x, 3, 0))[0] for x in (3, 0, -3)]
     _, tris, obj = cubes((0, 0, 0), (0, 0, 0))
     assert not shadows_nothing(knots_of(*ends), tris, obj)

@@ -40,6 +40,9 @@ MAX_OBJECTS = 256
 #: an object is checked for convexity only up to this many (faces × vertices, over all knots:
 #: a larger flat closed mesh keeps its maps)
 MAX_CONVEX_WORK = 4_000_000
+#: values (knots × vertices × directions) the extents project in one pass: with accumulation's
+#: instants as knots there may be a thousand of them
+EXTENT_CHUNK = 4_000_000
 #: a vertex this far (relative to the object's size) outside a face's plane makes it non-convex
 CONVEX_TOL = 1e-6
 
@@ -151,9 +154,13 @@ def unneeded_lights(rows: list[int], knots: list[Sample], tri_vertices: np.ndarr
 
     def extents(dirs: np.ndarray):
         """(lo, hi) (O, D) of each object along dirs (D, 3) over the knots, or None if not finite."""
+        v_lo = np.full((len(used), len(dirs)), np.inf)
+        v_hi = np.full((len(used), len(dirs)), -np.inf)
+        step = max(1, EXTENT_CHUNK // max(len(used) * len(dirs), 1))   # knots a pass: bounded memory
         with np.errstate(over="ignore", invalid="ignore"):   # (huge coordinates: not finite, checked below)
-            proj = stacked @ dirs.T   # (K + 1, U, D)
-            v_lo, v_hi = proj.min(axis=0), proj.max(axis=0)
+            for k0 in range(0, len(stacked), step):
+                proj = stacked[k0:k0 + step] @ dirs.T   # (<= step, U, D); NaN carries through
+                v_lo, v_hi = np.minimum(v_lo, proj.min(axis=0)), np.maximum(v_hi, proj.max(axis=0))
         lo = np.full((len(objects), len(dirs)), np.inf)
         hi = np.full((len(objects), len(dirs)), -np.inf)
         np.minimum.at(lo, owner, v_lo[corner])
