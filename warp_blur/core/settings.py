@@ -95,7 +95,9 @@ class RenderSettings:
             (draft 0.1, preview 0.05, final 0.0125) or 0.025.
         max_segments: upper bound of motion segments per prim (power of two).
         memory_budget_mb: analytic interval arrays above this render in pixel bands; accumulation
-            records still pixels' hits only within it (else renders them at every instant).
+            records still pixels' hits only within it (else renders them at every instant), and
+            keeps its instants' positions for the test of lights that shadow nothing lit only
+            within 1/8 of it.
         frame_memory_limit_mb: a frame whose per-pixel buffers are estimated above this is refused
             before any work (memory.py); None = three quarters of physical memory.
         soft_edge_radius: velocity method: blur radius (pixels) of the soft-edge velocity buffer (0 = off).
