@@ -120,12 +120,10 @@ def moving_tile_pixels(ctx: FrameContext, us: np.ndarray) -> MovingTiles | None:
         mark(snap.positions, np.nonzero(differ & visible(snap))[0])
         if knots is not None:
             knots.append(snap)
-    if knots is not None:
-        ctx.instant_knots = knots
     # shadows leave still pixels alike too when every instant shades with the same maps (nothing
     # moves in any light's view: ShadowMaps.static; lights that move are caught below)
-    maps = ctx.instant_shadow_maps() if casts else None
-    ctx.instant_knots = None   # (the maps are made: the instants' copies go back now, not at the frame's end)
+    maps = ctx.instant_shadow_maps(knots) if casts else None
+    knots = None   # (the maps are made: the instants' copies go back now, not at the frame's end)
     steady = (not casts or maps is None or maps.static) and lights_still
     still = same_vis & all_corners(still_v, scene.tri_vertices) & ~scene.tri_fractional
     if not still.any():

@@ -216,11 +216,12 @@ class FrameContext:
             return 0.5
         return (time_code - self.shutter.open) / (self.shutter.close - self.shutter.open)
 
-    def instant_shadow_maps(self) -> ShadowMaps | None:
+    def instant_shadow_maps(self, knots: list | None = None) -> ShadowMaps | None:
         """The shadow maps the frame's sharp instants shade with (made on first use; None when no
-        light can cast a visible shadow, or, with instant_knots, none can darken anything lit)."""
+        light can cast a visible shadow, or, with knots (snapshots of every scene its instants
+        shade; instant_knots when not given), none can darken anything lit)."""
         if self._instant_shadows is None:
-            knots = [Sample.of(k) for k in self.instant_knots or []] or None
+            knots = [Sample.of(k) for k in (knots if knots is not None else self.instant_knots) or []] or None
             self._instant_shadows = self.shadow_maps(
                 lambda u: Sample.of(self.scene.snapshot(self.shutter.time(u), with_normals=False)), knots) or False
         return self._instant_shadows or None

@@ -129,7 +129,7 @@ def unneeded_lights(rows: list[int], knots: list[Sample], tri_vertices: np.ndarr
     lit = visible & tri_receives
     if not lit.any():
         return set(still)
-    if (lit & ~tri_self_safe).any():   # an open or smooth receiver (the usual ground): no further look
+    if not may_drop_lights(visible, tri_receives, tri_self_safe):   # an open or smooth receiver (a ground)
         return set()
     receivers = np.unique(tri_object[lit])
     objects = np.unique(tri_object[visible])
